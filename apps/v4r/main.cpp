@@ -1,0 +1,2 @@
+// v4r - robust model-based object tracking. MIT licence.
+int main() { return 0; }

@@ -1,0 +1,37 @@
+// v4r - robust model-based object tracking. MIT licence.
+#pragma once
+
+#include <memory>
+#include <string>
+
+#include <opencv2/core.hpp>
+
+#include "v4r/core/expected.hpp"
+#include "v4r/image/image_view.hpp"
+
+namespace v4r::io {
+
+/// \brief A sequence of input frames: a folder of images (sorted by name), a printf pattern
+/// (`frames/%06d.png`, counted from 0 or from the first index that exists), or a video file.
+class FrameSource {
+ public:
+  virtual ~FrameSource() = default;
+
+  /// Opens INPUT; errors name it (missing, empty folder, unreadable video...).
+  static Expected<std::unique_ptr<FrameSource>> open(const std::string& input);
+
+  /// Reads the next frame into `bgr` (8-bit, 1 or 3 channels as stored). Returns false at the
+  /// end of the input, or an Error naming the frame that could not be decoded.
+  virtual Expected<bool> next(cv::Mat& bgr) = 0;
+  /// Name of the last frame read (file path, or "video.mp4#12").
+  [[nodiscard]] virtual std::string current_name() const = 0;
+  /// Number of frames if known, else -1.
+  [[nodiscard]] virtual int size_hint() const = 0;
+};
+
+/// View of an 8-bit single-channel cv::Mat (no copy; the Mat must outlive the view).
+inline image::ImageView as_view(const cv::Mat& grey) {
+  return image::ImageView{grey.ptr<std::uint8_t>(0), grey.cols, grey.rows, static_cast<int>(grey.step[0])};
+}
+
+}  // namespace v4r::io
