@@ -1,2 +1,225 @@
 // v4r - robust model-based object tracking. MIT licence.
-int main() { return 0; }
+// The v4r command line: track, render, demo, bench, inspect-model.
+#include <exception>
+#include <filesystem>
+
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+#include <opencv2/imgproc.hpp>
+
+#include "app.hpp"
+#include "v4r/geometry/look_at.hpp"
+#include "v4r/io/camera_io.hpp"
+#include "v4r/io/frame_source.hpp"
+#include "v4r/io/pose_io.hpp"
+#include "v4r/model/cao_reader.hpp"
+#include "v4r/pipeline/evaluation.hpp"
+#include "v4r/synth/renderer.hpp"
+
+namespace fs = std::filesystem;
+using namespace v4r;
+
+namespace {
+
+struct RenderArgs {
+  std::string model = "ship", out, camera;
+  int frames = 120;
+  double speed = 1.0, distance = 0.6, azimuth = -0.6, elevation = 0.75, noise = 2.0;
+  unsigned seed = 7;
+  bool grey = false;
+};
+
+/// The built-in model names map to their .cao text; anything else is a path.
+Expected<std::string> model_text(const std::string& name) {
+  if (name == "box") return synth::box_cao();
+  if (name == "ship" || name == "ship_mockup") return synth::ship_mockup_cao();
+  std::FILE* f = std::fopen(name.c_str(), "rb");
+  if (!f) return make_error(name, 0, 0, "model file not found (built-in models: box, ship)");
+  std::string s;
+  char buf[4096];
+  std::size_t n;
+  while ((n = std::fread(buf, 1, sizeof buf, f)) > 0) s.append(buf, n);
+  std::fclose(f);
+  return s;
+}
+
+Expected<geometry::PinholeCamera> render_camera(const RenderArgs& a) {
+  if (a.camera.empty()) return synth::default_camera();
+  return io::load_camera(a.camera);
+}
+
+std::vector<geometry::SE3> trajectory_for(const RenderArgs& a) {
+  synth::TrajectorySpec spec;
+  spec.frames = a.frames;
+  spec.speed = a.speed;
+  spec.T0 = geometry::look_at(a.distance, a.azimuth, a.elevation);
+  return synth::make_trajectory(spec);
+}
+
+int cmd_render(const RenderArgs& a) {
+  auto text = model_text(a.model);
+  if (!text) {
+    fmt::print(stderr, "v4r render: error: {}\n", text.error().to_string());
+    return 1;
+  }
+  auto cam = render_camera(a);
+  if (!cam) {
+    fmt::print(stderr, "v4r render: error: {}\n", cam.error().to_string());
+    return 1;
+  }
+  synth::RenderOptions ro;
+  ro.noise_sigma = a.noise;
+  ro.seed = a.seed;
+  ro.colour = !a.grey;
+  auto r = synth::write_sequence(a.out, *text, *cam, trajectory_for(a), ro);
+  if (!r) {
+    fmt::print(stderr, "v4r render: error: {}\n", r.error().to_string());
+    return 1;
+  }
+  fmt::print("rendered {} frames into {} (frames/, gt.csv, camera.yaml, init_pose.txt, model.cao)\n", a.frames, a.out);
+  return 0;
+}
+
+int cmd_demo(const std::string& out) {
+  RenderArgs ra;
+  ra.model = "ship";
+  ra.out = (fs::path(out) / "sequence").string();
+  fmt::print("v4r demo: rendering the ship-section mockup ({} frames) into {}\n", ra.frames, ra.out);
+  if (int rc = cmd_render(ra); rc != 0) return rc;
+  app::TrackOptions to;
+  to.model_path = (fs::path(ra.out) / "model.cao").string();
+  to.camera_path = (fs::path(ra.out) / "camera.yaml").string();
+  to.input = (fs::path(ra.out) / "frames").string();
+  to.init_pose_file = (fs::path(ra.out) / "init_pose.txt").string();
+  to.output_csv = (fs::path(out) / "poses.csv").string();
+  to.overlay = (fs::path(out) / "overlay.avi").string();
+  to.gt_csv = (fs::path(ra.out) / "gt.csv").string();
+  fmt::print("v4r demo: tracking\n");
+  const int rc = app::cmd_track(to);
+  if (rc == 0) fmt::print("v4r demo: poses in {}, overlay video in {}\n", to.output_csv, to.overlay);
+  return rc;
+}
+
+int cmd_bench(const RenderArgs& a, int repeat) {
+  auto text = model_text(a.model);
+  if (!text) {
+    fmt::print(stderr, "v4r bench: error: {}\n", text.error().to_string());
+    return 1;
+  }
+  auto m = model::parse_cao(*text, a.model);
+  if (!m) {
+    fmt::print(stderr, "v4r bench: error: {}\n", m.error().to_string());
+    return 1;
+  }
+  auto model = std::make_shared<const model::Model>(std::move(*m));
+  const geometry::PinholeCamera cam = synth::default_camera();
+  const auto traj = trajectory_for(a);
+  synth::RenderOptions ro;
+  ro.colour = false;
+  synth::Renderer renderer(cam, ro);
+  std::vector<cv::Mat> frames;
+  for (int i = 0; i < a.frames; ++i) frames.push_back(renderer.render(*model, traj[i], i));
+  app::TrackSummary s;
+  for (int r = 0; r < repeat; ++r) {
+    pipeline::SingleObjectTracker tracker(model, cam);
+    tracker.set_pose(traj[0]);
+    for (int i = 0; i < a.frames; ++i) {
+      const auto res = tracker.track(io::as_view(frames[i]));
+      if (r == repeat - 1) s.poses.push_back(res.T_cam_obj);
+      s.cycle_ms.push_back(res.cycle_ms);
+      s.visibility_ms.push_back(res.visibility_ms);
+      s.track_ms.push_back(res.track_ms);
+      s.solve_ms.push_back(res.solve_ms);
+      s.features_used.push_back(res.report.features_used);
+      if (res.report.status == scene::TrackStatus::kLost) ++s.lost;
+      ++s.frames;
+    }
+  }
+  const auto used = pipeline::percentiles(std::vector<double>(s.features_used.begin(), s.features_used.end()));
+  fmt::print("v4r bench: model {} at {}x{}, {} frames x {} runs, median {} features used per frame\n", a.model,
+             cam.width, cam.height, a.frames, repeat, used.median);
+  app::print_report(s, &traj);
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    CLI::App app{"v4r: real-time 6-DoF tracking of CAD-modelled objects"};
+    app.require_subcommand(1);
+
+    app::TrackOptions to;
+    std::string init_pose_str;
+    auto* track = app.add_subcommand("track", "Track an object through an image sequence or video");
+    track->add_option("--model", to.model_path, "Model file (.cao)")->required();
+    track->add_option("--camera", to.camera_path, "Calibration (OpenCV or ROS camera_info YAML)")->required();
+    track->add_option("--input", to.input, "Image folder, printf pattern (frames/%06d.png) or video")->required();
+    auto* ipf = track->add_option("--init-pose-file", to.init_pose_file, "File with 'tx ty tz rx ry rz' (T_cam_obj)");
+    auto* ip = track->add_option("--init-pose", init_pose_str, "Initial T_cam_obj: \"tx ty tz rx ry rz\" (m, rad)");
+    ipf->excludes(ip);
+    track->add_option("--output", to.output_csv, "Pose CSV to write")->required();
+    track->add_option("--overlay", to.overlay, "Overlay video (.avi/.mp4) or folder of PNGs");
+    track->add_option("--gt", to.gt_csv, "Ground-truth CSV: print accuracy");
+
+    RenderArgs ra;
+    auto* render = app.add_subcommand("render", "Render a synthetic sequence with ground truth");
+    render->add_option("--model", ra.model, "box, ship, or a .cao file")->capture_default_str();
+    render->add_option("--out", ra.out, "Output folder")->required();
+    render->add_option("--frames", ra.frames, "Number of frames")->check(CLI::Range(1, 100000))->capture_default_str();
+    render->add_option("--speed", ra.speed, "Motion speed factor")->check(CLI::Range(0.0, 100.0))->capture_default_str();
+    render->add_option("--distance", ra.distance, "Initial distance, m")->check(CLI::Range(0.05, 100.0))->capture_default_str();
+    render->add_option("--noise", ra.noise, "Sensor noise sigma, grey levels")->check(CLI::Range(0.0, 100.0))->capture_default_str();
+    render->add_option("--seed", ra.seed, "Random seed")->capture_default_str();
+    render->add_option("--camera", ra.camera, "Calibration file (default: built-in 640x480)");
+    render->add_flag("--grey", ra.grey, "Render grey images");
+
+    std::string demo_out = "build/demo";
+    auto* demo = app.add_subcommand("demo", "Render the ship mockup, track it, print accuracy and timing");
+    demo->add_option("--out", demo_out, "Output folder")->capture_default_str();
+
+    RenderArgs ba;
+    int repeat = 5;
+    auto* bench = app.add_subcommand("bench", "Benchmark the vision cycle on a rendered sequence (in memory)");
+    bench->add_option("--model", ba.model, "box, ship, or a .cao file")->capture_default_str();
+    bench->add_option("--frames", ba.frames, "Frames")->check(CLI::Range(2, 100000))->capture_default_str();
+    bench->add_option("--repeat", repeat, "Runs over the sequence")->check(CLI::Range(1, 1000))->capture_default_str();
+
+    std::string inspect_path;
+    auto* inspect = app.add_subcommand("inspect-model", "Load a model and print its features");
+    inspect->add_option("model", inspect_path, "Model file")->required();
+
+    CLI11_PARSE(app, argc, argv);
+
+    if (*track) {
+      if (!init_pose_str.empty()) {
+        auto p = io::parse_pose(init_pose_str, "--init-pose");
+        if (!p) {
+          fmt::print(stderr, "v4r track: error: {}\n", p.error().to_string());
+          return 1;
+        }
+        to.init_pose = *p;
+      }
+      return app::cmd_track(to);
+    }
+    if (*render) return cmd_render(ra);
+    if (*demo) return cmd_demo(demo_out);
+    if (*bench) return cmd_bench(ba, repeat);
+    if (*inspect) {
+      auto m = app::load_model(inspect_path);
+      if (!m) {
+        fmt::print(stderr, "v4r inspect-model: error: {}\n", m.error().to_string());
+        return 1;
+      }
+      const model::Model& mm = **m;
+      fmt::print("model {}: {} junctions, {} lines, {} arcs, {} faces, {} cylinders, bounding radius {:.4f} m\n",
+                 mm.name(), mm.junctions().size(), mm.lines().size(), mm.arcs().size(), mm.faces().size(),
+                 mm.cylinders().size(), mm.bounding_radius());
+      return 0;
+    }
+    return 0;
+  } catch (const std::exception& e) {
+    fmt::print(stderr, "v4r: internal error: {}\n", e.what());
+    return 2;
+  }
+}

@@ -1,0 +1,38 @@
+// v4r - robust model-based object tracking. MIT licence.
+#pragma once
+
+#include <memory>
+
+#include "v4r/pipeline/vision_cycle.hpp"
+
+namespace v4r::pipeline {
+
+/// \brief The result of one frame for the tracked object.
+struct FrameResult {
+  geometry::SE3 T_cam_obj;
+  geometry::Matrix6d covariance = geometry::Matrix6d::Zero();
+  ObjectReport report;
+  double cycle_ms = 0.0;
+  double visibility_ms = 0.0, track_ms = 0.0, solve_ms = 0.0;
+};
+
+/// \brief Convenience front end for the common case of one object seen by one camera whose
+/// frame is the reference frame: a Scene with one camera and one object, driven by a VisionCycle.
+class SingleObjectTracker {
+ public:
+  SingleObjectTracker(std::shared_ptr<const model::Model> model, const geometry::PinholeCamera& cam,
+                      const CycleParams& params = {});
+  /// Sets the object pose (T_cam_obj) and (re)starts tracking from it.
+  void set_pose(const geometry::SE3& T_cam_obj);
+  /// Runs one vision cycle on an 8-bit grey image of the camera.
+  FrameResult track(const image::ImageView& grey);
+
+  scene::Scene& scene() { return scene_; }
+  VisionCycle& cycle() { return cycle_; }
+
+ private:
+  scene::Scene scene_;
+  VisionCycle cycle_;
+};
+
+}  // namespace v4r::pipeline

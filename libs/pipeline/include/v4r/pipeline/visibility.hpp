@@ -1,0 +1,63 @@
+// v4r - robust model-based object tracking. MIT licence.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "v4r/geometry/camera.hpp"
+#include "v4r/geometry/se3.hpp"
+#include "v4r/model/model.hpp"
+
+namespace v4r::pipeline {
+
+/// \brief Parameters of the visibility test (issue: only edges that can be seen are tracked).
+struct VisibilityParams {
+  double appear_angle = 1.40;     ///< radians: a hidden face becomes visible below this view angle
+  double disappear_angle = 1.48;  ///< radians: a visible face becomes hidden above this view angle
+  double crease_angle = 0.05;     ///< radians: an edge between faces closer than this in normal is no edge
+  int samples = 12;               ///< points per edge tested for occlusion and image bounds
+  double image_margin = 4.0;      ///< pixels: points nearer the border count as outside
+  double min_length_px = 15.0;    ///< visible parts shorter than this are not tracked
+};
+
+/// \brief The visible part of a model edge: parameters s0 < s1 in [0, 1] along a->b.
+struct EdgeVisibility {
+  bool visible = false;
+  double s0 = 0.0, s1 = 1.0;
+};
+
+/// \brief Decides which model edges can be seen from a pose: faces turned away are dropped with
+/// hysteresis (appear/disappear angles), and edge points hidden behind other faces of the same
+/// model (depth test along the line of sight) or outside the image are cut away. Allocates its
+/// buffers once per model size; update() then allocates nothing.
+class VisibilityTester {
+ public:
+  explicit VisibilityTester(const VisibilityParams& p = {}) : p_(p) {}
+  [[nodiscard]] const VisibilityParams& params() const { return p_; }
+  VisibilityParams& params() { return p_; }
+
+  /// Updates `face_visible` (one byte per face, hysteresis state) and writes one EdgeVisibility
+  /// per model line into `out` (size = model.lines().size()).
+  void update(const model::Model& model, const geometry::SE3& T_cam_obj, const geometry::PinholeCamera& cam,
+              std::span<std::uint8_t> face_visible, std::span<EdgeVisibility> out);
+
+ private:
+  struct FaceCache {
+    Eigen::Vector3d n_cam;  // plane normal, camera frame
+    double d = 0.0;         // plane offset: n_cam . X = d
+    Eigen::Vector2d lo, hi; // bounding box in normalised image coordinates
+    std::uint32_t first = 0, count = 0;  // polygon vertices in poly_ (normalised coordinates)
+    bool usable = false;
+  };
+  bool occluded(const Eigen::Vector3d& p_cam, model::Index face_a, model::Index face_b) const;
+
+  VisibilityParams p_;
+  std::vector<FaceCache> faces_;
+  std::vector<Eigen::Vector2d> poly_;
+  std::vector<std::uint8_t> sample_ok_;
+};
+
+}  // namespace v4r::pipeline

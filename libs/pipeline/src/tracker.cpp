@@ -1,0 +1,33 @@
+// v4r - robust model-based object tracking. MIT licence.
+#include "v4r/pipeline/tracker.hpp"
+
+namespace v4r::pipeline {
+
+SingleObjectTracker::SingleObjectTracker(std::shared_ptr<const model::Model> model, const geometry::PinholeCamera& cam,
+                                         const CycleParams& params)
+    : cycle_(params) {
+  scene_.add_camera(scene::Camera{"camera", cam, geometry::SE3()});
+  (void)scene_.add_object(model ? model->name() : std::string("object"), std::move(model));
+}
+
+void SingleObjectTracker::set_pose(const geometry::SE3& T_cam_obj) {
+  if (!scene_.objects().empty()) scene_.set_pose(0, T_cam_obj);
+}
+
+FrameResult SingleObjectTracker::track(const image::ImageView& grey) {
+  const CycleReport& rep = cycle_.process(scene_, std::span<const image::ImageView>(&grey, 1));
+  FrameResult r;
+  if (!scene_.objects().empty()) {
+    const scene::Object& o = scene_.objects()[0];
+    r.T_cam_obj = o.T_ref_obj;
+    r.covariance = o.covariance;
+    r.report = rep.objects[0];
+  }
+  r.cycle_ms = rep.cycle_ms;
+  r.visibility_ms = rep.visibility_ms;
+  r.track_ms = rep.track_ms;
+  r.solve_ms = rep.solve_ms;
+  return r;
+}
+
+}  // namespace v4r::pipeline

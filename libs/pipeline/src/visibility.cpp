@@ -1,0 +1,151 @@
+// v4r - robust model-based object tracking. MIT licence.
+#include "v4r/pipeline/visibility.hpp"
+
+#include <cmath>
+
+namespace v4r::pipeline {
+
+namespace {
+// Crossing-number point-in-polygon test.
+bool inside_polygon(const Eigen::Vector2d& q, const Eigen::Vector2d* poly, std::uint32_t n) {
+  bool in = false;
+  for (std::uint32_t i = 0, j = n - 1; i < n; j = i++) {
+    const Eigen::Vector2d& a = poly[i];
+    const Eigen::Vector2d& b = poly[j];
+    if ((a.y() > q.y()) != (b.y() > q.y())) {
+      const double x = a.x() + (q.y() - a.y()) * (b.x() - a.x()) / (b.y() - a.y());
+      if (q.x() < x) in = !in;
+    }
+  }
+  return in;
+}
+}  // namespace
+
+bool VisibilityTester::occluded(const Eigen::Vector3d& p_cam, model::Index face_a, model::Index face_b) const {
+  const Eigen::Vector2d q(p_cam.x() / p_cam.z(), p_cam.y() / p_cam.z());
+  const Eigen::Vector3d ray(q.x(), q.y(), 1.0);
+  for (std::size_t fi = 0; fi < faces_.size(); ++fi) {
+    const FaceCache& f = faces_[fi];
+    if (!f.usable || fi == face_a || fi == face_b) continue;
+    if (q.x() < f.lo.x() || q.y() < f.lo.y() || q.x() > f.hi.x() || q.y() > f.hi.y()) continue;
+    const double den = f.n_cam.dot(ray);
+    if (std::abs(den) < 1e-12) continue;
+    const double z_face = f.d / den;
+    // The face hides the point when it is hit clearly before it along the line of sight.
+    if (z_face <= 0.0 || z_face >= p_cam.z() * (1.0 - 1e-4) - 1e-5) continue;
+    if (inside_polygon(q, poly_.data() + f.first, f.count)) return true;
+  }
+  return false;
+}
+
+void VisibilityTester::update(const model::Model& model, const geometry::SE3& T_cam_obj,
+                              const geometry::PinholeCamera& cam, std::span<std::uint8_t> face_visible,
+                              std::span<EdgeVisibility> out) {
+  const auto& faces = model.faces();
+  const auto& junctions = model.junctions();
+  const Eigen::Matrix3d R = T_cam_obj.rotation();
+  const Eigen::Vector3d& t = T_cam_obj.translation();
+  const Eigen::Vector3d cam_in_obj = -(R.transpose() * t);
+  const double cos_appear = std::cos(p_.appear_angle), cos_disappear = std::cos(p_.disappear_angle);
+
+  faces_.resize(faces.size());
+  std::size_t total_vertices = 0;
+  for (const auto& f : faces) total_vertices += f.loop.size();
+  if (poly_.size() < total_vertices) poly_.resize(total_vertices);
+
+  std::uint32_t cursor = 0;
+  for (std::size_t fi = 0; fi < faces.size(); ++fi) {
+    const model::Face& f = faces[fi];
+    FaceCache& c = faces_[fi];
+    c.first = cursor;
+    c.count = static_cast<std::uint32_t>(f.loop.size());
+    cursor += c.count;
+    // Face orientation with hysteresis.
+    const Eigen::Vector3d p0 = junctions[f.loop[0]].p;
+    Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+    for (model::Index j : f.loop) centroid += junctions[j].p;
+    centroid /= static_cast<double>(f.loop.size());
+    const Eigen::Vector3d to_cam = (cam_in_obj - centroid).normalized();
+    const double cosang = f.normal.dot(to_cam);
+    const bool was = fi < face_visible.size() && face_visible[fi] != 0;
+    const bool now = was ? cosang > cos_disappear : cosang > cos_appear;
+    if (fi < face_visible.size()) face_visible[fi] = now ? 1 : 0;
+    // Occluder cache: any face facing the camera (strictly) can hide edges behind it.
+    c.usable = f.normal.dot(cam_in_obj - p0) > 0.0;
+    c.n_cam = R * f.normal;
+    c.d = c.n_cam.dot(T_cam_obj * p0);
+    if (c.usable) {
+      c.lo = Eigen::Vector2d::Constant(1e300);
+      c.hi = Eigen::Vector2d::Constant(-1e300);
+      for (std::uint32_t k = 0; k < c.count; ++k) {
+        const Eigen::Vector3d pc = T_cam_obj * junctions[f.loop[k]].p;
+        if (pc.z() <= 1e-6) {  // faces crossing the camera plane are not used as occluders
+          c.usable = false;
+          break;
+        }
+        const Eigen::Vector2d q(pc.x() / pc.z(), pc.y() / pc.z());
+        poly_[c.first + k] = q;
+        c.lo = c.lo.cwiseMin(q);
+        c.hi = c.hi.cwiseMax(q);
+      }
+    }
+  }
+
+  const int n = std::max(2, p_.samples);
+  if (static_cast<int>(sample_ok_.size()) < n) sample_ok_.resize(n);
+  const auto& lines = model.lines();
+  for (std::size_t li = 0; li < lines.size() && li < out.size(); ++li) {
+    const model::LineEdge& e = lines[li];
+    EdgeVisibility& v = out[li];
+    v = EdgeVisibility{};
+    // Orientation: an edge bounded by faces is seen when one of them is; a crease between
+    // (almost) coplanar faces is no edge at all. Free lines are always candidates.
+    const bool has_l = e.face_left != model::kNone, has_r = e.face_right != model::kNone;
+    if (has_l || has_r) {
+      const bool vl = has_l && face_visible[e.face_left];
+      const bool vr = has_r && face_visible[e.face_right];
+      if (!vl && !vr) continue;
+      if (has_l && has_r && faces[e.face_left].normal.dot(faces[e.face_right].normal) > std::cos(p_.crease_angle))
+        continue;
+    }
+    const Eigen::Vector3d A = T_cam_obj * junctions[e.a].p;
+    const Eigen::Vector3d B = T_cam_obj * junctions[e.b].p;
+    // Samples at the centres of n equal pieces; the longest run of visible samples is kept.
+    int best_start = -1, best_len = 0, run_start = -1;
+    for (int k = 0; k < n; ++k) {
+      const double s = (k + 0.5) / n;
+      const Eigen::Vector3d P = A + s * (B - A);
+      bool ok = P.z() > 1e-3;
+      if (ok) ok = cam.in_image(cam.project(P), p_.image_margin);
+      if (ok) ok = !occluded(P, e.face_left, e.face_right);
+      if (ok) {
+        if (run_start < 0) run_start = k;
+        if (k - run_start + 1 > best_len) {
+          best_len = k - run_start + 1;
+          best_start = run_start;
+        }
+      } else {
+        run_start = -1;
+      }
+    }
+    if (best_len == 0) continue;
+    // Extend the run to the full edge where it reaches an end sample.
+    v.s0 = best_start == 0 ? 0.0 : static_cast<double>(best_start) / n;
+    v.s1 = best_start + best_len == n ? 1.0 : static_cast<double>(best_start + best_len) / n;
+    // Clip to the front of the camera and the image by bisection at the ends that are cut.
+    const Eigen::Vector2d pa = cam.project(A + v.s0 * (B - A));
+    const Eigen::Vector2d pb = cam.project(A + v.s1 * (B - A));
+    const bool ends_ok = (A + v.s0 * (B - A)).z() > 1e-3 && (A + v.s1 * (B - A)).z() > 1e-3 &&
+                         cam.in_image(pa, 0.0) && cam.in_image(pb, 0.0);
+    if (!ends_ok) {
+      // Fall back to the sample centres, which are known to be inside.
+      v.s0 = (best_start + 0.5) / n;
+      v.s1 = (best_start + best_len - 0.5) / n;
+    }
+    const Eigen::Vector2d qa = cam.project(A + v.s0 * (B - A));
+    const Eigen::Vector2d qb = cam.project(A + v.s1 * (B - A));
+    v.visible = (qb - qa).norm() >= p_.min_length_px;
+  }
+}
+
+}  // namespace v4r::pipeline

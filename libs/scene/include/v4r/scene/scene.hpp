@@ -1,0 +1,95 @@
+// v4r - robust model-based object tracking. MIT licence.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "v4r/core/expected.hpp"
+#include "v4r/estimation/pose_solver.hpp"
+#include "v4r/features/line_tracker.hpp"
+#include "v4r/geometry/camera.hpp"
+#include "v4r/geometry/se3.hpp"
+#include "v4r/model/model.hpp"
+
+namespace v4r::scene {
+
+/// \brief A camera of the scene: intrinsics and its pose in the reference frame.
+struct Camera {
+  std::string name;
+  geometry::PinholeCamera intrinsics;
+  geometry::SE3 T_ref_cam;  ///< maps camera coordinates into the reference frame
+};
+
+/// State of one image feature in one view.
+enum class FeatureStatus : std::uint8_t {
+  kNotFound,  ///< never found yet: searched at its projection with the wide search window
+  kFound,     ///< found in the last frame: tracked in its window
+  kLost,      ///< found before, missing now: re-projected from the model and searched again
+  kOutlier,   ///< found but rejected by the pose solver's outlier detection this frame
+};
+
+/// \brief An image line linked to a model edge (paper 2.1: image features are linked to model
+/// features), with its tracking state.
+struct LineFeature {
+  model::Index edge = model::kNone;  ///< index into Model::lines()
+  FeatureStatus status = FeatureStatus::kNotFound;
+  bool visible = false;               ///< visible in the current prediction
+  Eigen::Vector3d X1 = Eigen::Vector3d::Zero(), X2 = Eigen::Vector3d::Zero();  ///< visible part, object frame
+  features::Segment2 predicted;       ///< projection of the visible part (pixels)
+  features::LineTrackState track;     ///< state the tracker carries between frames
+  features::LineMeasurement measurement;  ///< last measurement
+  int frames_missing = 0;             ///< consecutive frames not found
+};
+
+/// \brief An object as seen by one camera: the image features and the view pose.
+struct View {
+  std::size_t camera = 0;         ///< index into Scene::cameras()
+  geometry::SE3 T_cam_obj;        ///< view pose
+  std::vector<LineFeature> lines;  ///< one per model edge
+  std::vector<std::uint8_t> face_visible;  ///< per model face, with hysteresis
+  estimation::PoseResult pose;    ///< last pose solve of this view
+};
+
+/// Tracking state of an object.
+enum class TrackStatus : std::uint8_t { kUninitialised, kTracking, kDegraded, kLost };
+const char* to_string(TrackStatus s);
+
+/// \brief A tracked object (paper 2.1): a model, one view per camera, and its pose in the
+/// reference frame.
+struct Object {
+  std::string name;
+  std::shared_ptr<const model::Model> model;
+  std::vector<View> views;
+  geometry::SE3 T_ref_obj;
+  geometry::Matrix6d covariance = geometry::Matrix6d::Zero();
+  TrackStatus status = TrackStatus::kUninitialised;
+  double quality = 0.0;  ///< 0..1 from found-feature ratio and residuals
+};
+
+/// \brief The scene: cameras and objects, owned by value. Adding an object creates one view per
+/// existing camera; adding a camera adds a view to every object.
+class Scene {
+ public:
+  std::size_t add_camera(Camera cam);
+  /// Adds an object with a model; its pose is unset (kUninitialised) until set_pose.
+  Expected<std::size_t> add_object(std::string name, std::shared_ptr<const model::Model> model);
+  /// Sets the pose of an object in the reference frame and (re)starts its tracking.
+  void set_pose(std::size_t object, const geometry::SE3& T_ref_obj);
+
+  [[nodiscard]] const std::vector<Camera>& cameras() const { return cameras_; }
+  [[nodiscard]] std::vector<Object>& objects() { return objects_; }
+  [[nodiscard]] const std::vector<Object>& objects() const { return objects_; }
+  /// Index of the object with this name, or -1.
+  [[nodiscard]] long find_object(const std::string& name) const;
+
+ private:
+  static View make_view(std::size_t camera, const model::Model& model);
+  std::vector<Camera> cameras_;
+  std::vector<Object> objects_;
+};
+
+}  // namespace v4r::scene

@@ -1,0 +1,65 @@
+// v4r - robust model-based object tracking. MIT licence.
+#include "v4r/scene/scene.hpp"
+
+#include <fmt/format.h>
+
+namespace v4r::scene {
+
+const char* to_string(TrackStatus s) {
+  switch (s) {
+    case TrackStatus::kUninitialised: return "uninitialised";
+    case TrackStatus::kTracking: return "tracking";
+    case TrackStatus::kDegraded: return "degraded";
+    case TrackStatus::kLost: return "lost";
+  }
+  return "unknown";
+}
+
+View Scene::make_view(std::size_t camera, const model::Model& model) {
+  View v;
+  v.camera = camera;
+  v.lines.resize(model.lines().size());
+  for (std::size_t i = 0; i < v.lines.size(); ++i) v.lines[i].edge = static_cast<model::Index>(i);
+  v.face_visible.assign(model.faces().size(), 0);
+  return v;
+}
+
+std::size_t Scene::add_camera(Camera cam) {
+  cameras_.push_back(std::move(cam));
+  const std::size_t ci = cameras_.size() - 1;
+  for (Object& o : objects_) o.views.push_back(make_view(ci, *o.model));
+  return ci;
+}
+
+Expected<std::size_t> Scene::add_object(std::string name, std::shared_ptr<const model::Model> model) {
+  if (!model) return make_error(fmt::format("object '{}' has no model", name));
+  if (find_object(name) >= 0) return make_error(fmt::format("an object named '{}' exists already", name));
+  Object o;
+  o.name = std::move(name);
+  o.model = std::move(model);
+  for (std::size_t ci = 0; ci < cameras_.size(); ++ci) o.views.push_back(make_view(ci, *o.model));
+  objects_.push_back(std::move(o));
+  return objects_.size() - 1;
+}
+
+void Scene::set_pose(std::size_t object, const geometry::SE3& T_ref_obj) {
+  Object& o = objects_.at(object);
+  o.T_ref_obj = T_ref_obj;
+  o.status = TrackStatus::kTracking;
+  for (View& v : o.views) {
+    v.T_cam_obj = cameras_[v.camera].T_ref_cam.inverse() * T_ref_obj;
+    for (LineFeature& f : v.lines) {
+      f.status = FeatureStatus::kNotFound;
+      f.track = {};
+      f.frames_missing = 0;
+    }
+  }
+}
+
+long Scene::find_object(const std::string& name) const {
+  for (std::size_t i = 0; i < objects_.size(); ++i)
+    if (objects_[i].name == name) return static_cast<long>(i);
+  return -1;
+}
+
+}  // namespace v4r::scene
