@@ -7,6 +7,7 @@
 
 #include <Eigen/Core>
 
+#include "v4r/estimation/residuals.hpp"
 #include "v4r/geometry/se3.hpp"
 
 namespace v4r::estimation {
@@ -28,13 +29,34 @@ struct LineObservation {
   double sigma_px = 1.0;  ///< a-priori noise of the line position across, pixels
 };
 
+/// \brief Settings of PoseSolver. Sigmas and thresholds are in units of the observations' a-priori
+/// sigma unless stated otherwise.
 struct PoseSolverParams {
   double focal_px = 500.0;     ///< converts pixel sigmas to normalised units (set from the camera)
   int max_iterations = 15;     ///< Gauss-Newton iterations per solve
   double step_tolerance = 1e-9;  ///< stop when |delta| (m / rad) falls below
   double outlier_threshold = 3.5;  ///< largest normalised residual allowed (units of sigma)
-  int max_outlier_rounds = 50;  ///< cap on remove-one-and-solve-again rounds
+  int max_outlier_rounds = 50;  ///< cap on remove-one-and-solve-again rounds (0: no outlier detection)
   int min_observations = 3;    ///< below this many active observations the solve fails
+  /// Use the first-order exact object-space sigmas: for a point the radial component of the
+  /// discrepancy gets sigma * cos(theta) (ray angle to the optical axis), for a line both plane
+  /// distances get sigma * sqrt(1 - n_z^2). false: sigma_px * z / focal_px for everything.
+  bool oblique_weighting = true;
+  /// Before the remove-largest loop, run an IRLS pass with Cauchy weights (and a scale estimated
+  /// from the median residual) from T_init, then reject what it marks as gross errors; rejected
+  /// observations that agree with the final pose are re-admitted once.
+  bool robust_init = true;
+  double cauchy_c = 2.385;          ///< Cauchy constant of the IRLS pass (units of sigma)
+  int robust_max_iterations = 30;   ///< iterations of the IRLS pass
+  /// Multiply outlier_threshold by max(1, s), s the median-based noise scale of the robust pass, so
+  /// that an a-priori sigma that is too optimistic does not turn inliers into outliers.
+  bool adaptive_threshold = true;
+  /// Covariance = max(sigma0, min_sigma0)^2 * H^-1: a-posteriori scaling, but never more than
+  /// 1/min_sigma0^2 times tighter than the a-priori covariance (protects a downstream filter when
+  /// the redundancy is small and sigma0 happens to come out tiny).
+  double min_sigma0 = 0.5;
+  double degeneracy_ratio = 1e-10;  ///< min/max eigenvalue of the balanced normal matrix below: kDegenerate
+  double min_depth = 1e-3;          ///< depth (m) used for weights of points at or behind the camera
 };
 
 enum class SolveStatus : std::uint8_t { kOk, kTooFewObservations, kDiverged, kDegenerate };
@@ -49,6 +71,9 @@ struct PoseResult {
   int inliers = 0;          ///< observations kept after outlier removal
   double rms_px = 0.0;      ///< RMS residual of the inliers, converted to pixels
   double sigma0 = 1.0;      ///< a-posteriori standard deviation of unit weight
+  double noise_scale = 1.0;  ///< median-based noise scale of the robust pass (units of a-priori sigma)
+  int outlier_rounds = 0;   ///< observations removed by the remove-largest loop (after the robust pass)
+  bool converged = false;   ///< the last Gauss-Newton run reached step_tolerance
   [[nodiscard]] bool ok() const { return status == SolveStatus::kOk; }
 };
 
@@ -71,9 +96,36 @@ class PoseSolver {
                    std::span<std::uint8_t> line_inlier = {});
 
  private:
+  /// Sums of one linearisation in normalised (sigma) units: H = sum rho J^T J, g = sum rho J^T r.
+  struct Normal {
+    geometry::Matrix6d H = geometry::Matrix6d::Zero();
+    geometry::Vector6d g = geometry::Vector6d::Zero();
+    double chi2 = 0.0;      ///< sum of squared normalised residuals (unweighted by rho)
+    double sum_sq_px = 0.0; ///< sum of squared residuals converted to pixels
+    int residuals = 0;      ///< scalar residuals accumulated
+    int behind = 0;         ///< active observation points at or behind the camera
+  };
+  enum class Statistic : std::uint8_t { kPlain, kStandardised };
+
+  void prepare(std::span<const PointObservation> points, std::span<const LineObservation> lines);
+  Normal linearise(const geometry::SE3& T, std::span<const PointObservation> points,
+                   std::span<const LineObservation> lines, bool robust) const;
+  SolveStatus gauss_newton(geometry::SE3& T, std::span<const PointObservation> points,
+                           std::span<const LineObservation> lines, bool robust, int max_iterations, int& iterations,
+                           bool& converged, Normal& last);
+  void update_robust_weights(double scale);
+  void statistics(const geometry::SE3& T, const geometry::Matrix6d& H_inv, std::span<const PointObservation> points,
+                  std::span<const LineObservation> lines, Statistic kind);
+  double median_scale();
+  int count_active() const;
+
   PoseSolverParams p_;
-  std::vector<std::uint8_t> active_pts_, active_lines_;
+  std::vector<std::uint8_t> active_pts_, active_lines_;  ///< 1 active, 0 rejected, 2 invalid input
+  std::vector<RayBasis> point_bases_;
   std::vector<Eigen::Vector3d> line_normals_;
+  std::vector<double> rho_pts_, rho_lines_;    ///< IRLS weights
+  std::vector<double> stat_pts_, stat_lines_;  ///< per-observation test statistic, units of sigma
+  std::vector<double> scratch_;                ///< median work buffer
 };
 
 }  // namespace v4r::estimation

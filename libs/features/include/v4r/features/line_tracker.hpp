@@ -69,15 +69,33 @@ class LineTracker {
   [[nodiscard]] const std::vector<Eigen::Vector2d>& last_inliers() const { return last_inliers_; }
 
  private:
+  struct Edgel {
+    float u;         // column offset from the window axis (pixels, along the normal)
+    float v;         // position along the window axis (pixels, 0 at the window centre)
+    float strength;  // |gradient| at the edgel (grey levels per pixel)
+    int sign;        // +1 / -1: sign of the gradient along the normal
+    int row;         // window row index
+  };
+  struct LineFit { double u0 = 0.0, s = 0.0; };  // u = u0 + s * v (window coordinates, pixels)
+
+  std::uint32_t next_random();
+  int score_line(const LineFit& line, int sign, float* strength_sum);  // fills inlier_idx_
+  bool fit_inliers(int count, LineFit* out) const;
+
   LineTrackerParams p_;
-  std::vector<float> patch_;     // rows x (2w+1) sampled intensities
+  int cols_ = 0;                 // 2w+1
+  std::vector<float> patch_;     // rows x (2w+1) sampled intensities, smoothed along the edge
   std::vector<float> grad_;      // rows x (2w+1) gradient across
   std::vector<unsigned char> row_valid_;
-  struct Edgel { float u, v, strength; int sign; };  // u: column offset from centre, v: row
-  std::vector<Edgel> edgels_;
-  std::vector<int> inlier_idx_;
+  std::vector<unsigned char> col_inside_;  // 2w+1: the current row's samples all inside the image
+  std::vector<double> row_v_;    // rows: position of each row along the axis (pixels)
+  std::vector<Eigen::Vector2d> row_centre_;  // rows: window centre point of each row (pixels)
+  std::vector<Edgel> edgels_;    // rows x max_candidates_per_row, row-major slots
+  std::vector<int> row_count_;   // rows: edgels held in each row's slots
+  std::vector<int> pool_;        // flat indices of all edgels (RANSAC sampling)
+  std::vector<int> inlier_idx_;  // rows: edgel index of each inlier (at most one per row)
   std::vector<Eigen::Vector2d> last_inliers_;
-  std::uint32_t rng_;
+  std::uint32_t rng_ = 1;
 };
 
 }  // namespace v4r::features

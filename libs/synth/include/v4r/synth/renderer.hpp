@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include <Eigen/Core>
 #include <opencv2/core.hpp>
 
 #include "v4r/core/expected.hpp"
@@ -14,55 +15,82 @@
 
 namespace v4r::synth {
 
-/// \brief Appearance of rendered sequences.
+/// \brief Appearance of rendered sequences. Grey levels are 0..255.
 struct RenderOptions {
-  int supersample = 3;          ///< samples per pixel per axis (anti-aliasing)
+  int supersample = 3;          ///< samples per pixel per axis at edge pixels (anti-aliasing; 1 = off)
   double noise_sigma = 2.0;     ///< Gaussian sensor noise, grey levels
   double texture_strength = 0.25;  ///< amplitude of the rust-like texture on faces (0..1)
-  Eigen::Vector3d light_dir_cam{0.3, -0.5, -1.0};  ///< direction *towards* the light, camera frame
+  double texture_scale = 0.03;  ///< metres: size of the largest rust blotches (object frame)
+  /// Direction *towards* the light, camera frame (need not be unit). The default lights a box
+  /// seen from above-front so that its three visible faces differ clearly in brightness.
+  Eigen::Vector3d light_dir_cam{0.40, -0.35, -0.85};
   double ambient = 0.35;        ///< ambient light fraction
-  bool textured_background = true;  ///< procedural background (else uniform grey)
+  bool textured_background = true;  ///< procedural background (else uniform background_grey)
+  double background_grey = 108.0;   ///< mean background level, grey levels
   bool colour = true;           ///< render BGR (else grey)
   std::uint32_t seed = 7;       ///< noise and texture seed
 };
 
 /// \brief Software renderer (ray casting against the model's faces with supersampling) of a
-/// Model seen by a PinholeCamera, including lens distortion. Faces are shaded (Lambert) and
-/// carry a procedural texture fixed to the object; the background is a static procedural
-/// texture. Deterministic for a given seed and frame index.
+/// Model seen by a PinholeCamera, including lens distortion. Faces are single-sided (back
+/// faces are not drawn: models are closed), shaded (Lambert + ambient) and carry a procedural
+/// texture fixed to the object; the background is a static procedural texture. Deterministic
+/// for a given seed and frame index. Thread-safe: render() is const and keeps no state.
 class Renderer {
  public:
   Renderer(const geometry::PinholeCamera& cam, const RenderOptions& opt = {});
-  /// Renders one frame (CV_8UC3 BGR, or CV_8UC1 when !opt.colour).
+  /// Renders one frame (CV_8UC3 BGR, or CV_8UC1 when !opt.colour) of `model` at pose T_cam_obj;
+  /// `frame_index` seeds the sensor noise.
   cv::Mat render(const model::Model& model, const geometry::SE3& T_cam_obj, int frame_index) const;
+
+  [[nodiscard]] const geometry::PinholeCamera& camera() const { return cam_; }
+  [[nodiscard]] const RenderOptions& options() const { return opt_; }
 
  private:
   geometry::PinholeCamera cam_;
   RenderOptions opt_;
-  cv::Mat background_;
+  cv::Mat background_;  ///< CV_32FC3 BGR, grey levels, static
+  cv::Mat rays_;        ///< CV_32FC2 (height+2) x (width+2): normalised undistorted coordinates of
+                        ///< the pixel centres, with a one-pixel border (entry (y+1, x+1) is pixel (x, y))
+  cv::Rect2d ray_bounds_;  ///< bounding box of all entries of rays_ (normalised coordinates)
+  std::vector<cv::Point2f> sample_offsets_;  ///< sub-pixel sample offsets (pixels) at edge pixels
+  std::vector<float> lattice_;  ///< value-noise lattice (kLattice^3 values in [0, 1]) of the texture
 };
 
 /// \brief A smooth pose trajectory: the object starts at `T0` and moves with sinusoidal
-/// translations and rotations of the given amplitudes over `frames` frames.
+/// translations (camera axes) and rotations (about camera-parallel axes through the object
+/// origin) of the given amplitudes over `frames` frames. Each axis has its own frequency, so
+/// the motion does not repeat within a few hundred frames; frame 0 is exactly T0.
 struct TrajectorySpec {
   int frames = 120;
   geometry::SE3 T0;             ///< pose of frame 0 (T_cam_obj)
-  double translation_amp = 0.05;  ///< metres
-  double rotation_amp = 0.25;     ///< radians
+  double translation_amp = 0.05;  ///< metres, along the camera x and y axes
+  double rotation_amp = 0.25;     ///< radians, about each axis
   double depth_amp = 0.1;         ///< metres along the optical axis
-  double speed = 1.0;             ///< multiplies the inter-frame motion
+  double speed = 1.0;             ///< multiplies the inter-frame motion (phase rate)
 };
 std::vector<geometry::SE3> make_trajectory(const TrajectorySpec& spec);
 
 /// Built-in test objects, as `.cao` text (so they go through the same reader as user models).
-std::string box_cao();           ///< 0.20 x 0.15 x 0.10 m box, origin at its centre
-std::string ship_mockup_cao();   ///< welded steel mockup: base plate with perpendicular walls
+/// The same texts are in data/box.cao and data/ship_mockup.cao.
+std::string box_cao();           ///< 0.20 x 0.15 x 0.10 m box (x, y, z), origin at its centre
+/// Welded steel mockup: base plate 0.40 x 0.30 x 0.02 m with a longitudinal and a transverse
+/// wall; origin at the centre of the plate's top face, z up.
+std::string ship_mockup_cao();
 
 /// A default 640x480 camera (f = 600 px, principal point at the centre, mild distortion).
 geometry::PinholeCamera default_camera();
 
-/// \brief Renders a whole sequence into `dir`: frames/000000.png ..., gt.csv (frame,tx,ty,tz,
-/// qw,qx,qy,qz), camera.yaml, init_pose.txt (pose of frame 0) and model.cao.
+/// \brief Pose T_cam_obj of a camera at `eye_obj` (object frame, metres) looking at
+/// `target_obj`, with `up_obj` pointing up in the image (camera -y). `up_obj` must not be
+/// parallel to the viewing direction.
+geometry::SE3 look_at(const Eigen::Vector3d& eye_obj, const Eigen::Vector3d& target_obj,
+                      const Eigen::Vector3d& up_obj = Eigen::Vector3d::UnitZ());
+
+/// \brief Renders a whole sequence into `dir` (created if needed): frames/000000.png ...,
+/// gt.csv (frame,tx,ty,tz,qw,qx,qy,qz), camera.yaml, init_pose.txt (pose of frame 0) and
+/// model.cao. Errors (directory not creatable, invalid model, empty trajectory, write failure)
+/// name the offending path.
 Expected<void> write_sequence(const std::string& dir, const std::string& model_cao, const geometry::PinholeCamera& cam,
                               const std::vector<geometry::SE3>& trajectory, const RenderOptions& opt);
 
