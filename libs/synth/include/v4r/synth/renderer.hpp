@@ -17,18 +17,20 @@ namespace v4r::synth {
 
 /// \brief Appearance of rendered sequences. Grey levels are 0..255.
 struct RenderOptions {
-  int supersample = 3;          ///< samples per pixel per axis at edge pixels (anti-aliasing; 1 = off)
-  double noise_sigma = 2.0;     ///< Gaussian sensor noise, grey levels
+  int supersample = 3;             ///< samples per pixel per axis at edge pixels (anti-aliasing; 1 = off)
+  double noise_sigma = 2.0;        ///< sensor noise (approximately Gaussian: scaled sum of 4 uniforms), grey levels
   double texture_strength = 0.25;  ///< amplitude of the rust-like texture on faces (0..1)
-  double texture_scale = 0.03;  ///< metres: size of the largest rust blotches (object frame)
-  /// Direction *towards* the light, camera frame (need not be unit). The default lights a box
-  /// seen from above-front so that its three visible faces differ clearly in brightness.
-  Eigen::Vector3d light_dir_cam{0.40, -0.35, -0.85};
-  double ambient = 0.35;        ///< ambient light fraction
+  double texture_scale = 0.03;     ///< metres: size of the largest rust blotches (object frame)
+  /// Direction *towards* the light, camera frame (need not be unit): from the upper left,
+  /// behind the camera. With the defaults, the faces of a box seen from above (30-60 degrees)
+  /// differ by >= ~30 grey levels from each other and from the background from most azimuths.
+  Eigen::Vector3d light_dir_cam{-0.40, -0.50, -0.77};
+  double ambient = 0.45;            ///< ambient light fraction
   bool textured_background = true;  ///< procedural background (else uniform background_grey)
-  double background_grey = 108.0;   ///< mean background level, grey levels
-  bool colour = true;           ///< render BGR (else grey)
-  std::uint32_t seed = 7;       ///< noise and texture seed
+  /// Mean background level, grey levels: darker than any lit face (faces span ~100..210).
+  double background_grey = 65.0;
+  bool colour = true;      ///< render BGR (else grey)
+  std::uint32_t seed = 7;  ///< noise and texture seed
 };
 
 /// \brief Software renderer (ray casting against the model's faces with supersampling) of a
@@ -49,12 +51,12 @@ class Renderer {
  private:
   geometry::PinholeCamera cam_;
   RenderOptions opt_;
-  cv::Mat background_;  ///< CV_32FC3 BGR, grey levels, static
-  cv::Mat rays_;        ///< CV_32FC2 (height+2) x (width+2): normalised undistorted coordinates of
-                        ///< the pixel centres, with a one-pixel border (entry (y+1, x+1) is pixel (x, y))
+  cv::Mat background_;     ///< CV_32FC3 BGR, grey levels, static
+  cv::Mat rays_;           ///< CV_32FC2 (height+2) x (width+2): normalised undistorted coordinates of
+                           ///< the pixel centres, with a one-pixel border (entry (y+1, x+1) is pixel (x, y))
   cv::Rect2d ray_bounds_;  ///< bounding box of all entries of rays_ (normalised coordinates)
   std::vector<cv::Point2f> sample_offsets_;  ///< sub-pixel sample offsets (pixels) at edge pixels
-  std::vector<float> lattice_;  ///< value-noise lattice (kLattice^3 values in [0, 1]) of the texture
+  std::vector<float> texture_;               ///< periodic fBm (kTextureSize^2 values in [0, 1]) mapped onto faces
 };
 
 /// \brief A smooth pose trajectory: the object starts at `T0` and moves with sinusoidal
@@ -63,7 +65,7 @@ class Renderer {
 /// the motion does not repeat within a few hundred frames; frame 0 is exactly T0.
 struct TrajectorySpec {
   int frames = 120;
-  geometry::SE3 T0;             ///< pose of frame 0 (T_cam_obj)
+  geometry::SE3 T0;               ///< pose of frame 0 (T_cam_obj)
   double translation_amp = 0.05;  ///< metres, along the camera x and y axes
   double rotation_amp = 0.25;     ///< radians, about each axis
   double depth_amp = 0.1;         ///< metres along the optical axis
@@ -73,7 +75,7 @@ std::vector<geometry::SE3> make_trajectory(const TrajectorySpec& spec);
 
 /// Built-in test objects, as `.cao` text (so they go through the same reader as user models).
 /// The same texts are in data/box.cao and data/ship_mockup.cao.
-std::string box_cao();           ///< 0.20 x 0.15 x 0.10 m box (x, y, z), origin at its centre
+std::string box_cao();  ///< 0.20 x 0.15 x 0.10 m box (x, y, z), origin at its centre
 /// Welded steel mockup: base plate 0.40 x 0.30 x 0.02 m with a longitudinal and a transverse
 /// wall; origin at the centre of the plate's top face, z up.
 std::string ship_mockup_cao();
@@ -89,8 +91,9 @@ geometry::SE3 look_at(const Eigen::Vector3d& eye_obj, const Eigen::Vector3d& tar
 
 /// \brief Renders a whole sequence into `dir` (created if needed): frames/000000.png ...,
 /// gt.csv (frame,tx,ty,tz,qw,qx,qy,qz), camera.yaml, init_pose.txt (pose of frame 0) and
-/// model.cao. Errors (directory not creatable, invalid model, empty trajectory, write failure)
-/// name the offending path.
+/// model.cao. Frames NNNNNN.png left in `dir` by a longer earlier sequence are removed. Errors
+/// (directory not creatable, invalid model, empty trajectory, write failure) name the offending
+/// path; the model and trajectory are validated before anything is written.
 Expected<void> write_sequence(const std::string& dir, const std::string& model_cao, const geometry::PinholeCamera& cam,
                               const std::vector<geometry::SE3>& trajectory, const RenderOptions& opt);
 

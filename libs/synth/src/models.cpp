@@ -1,0 +1,141 @@
+// v4r - robust model-based object tracking. MIT licence.
+//
+// Built-in test objects and camera. The model texts are also stored as data/box.cao and
+// data/ship_mockup.cao (a unit test checks that the copies are identical).
+#include <cmath>
+
+#include <Eigen/Geometry>
+
+#include "v4r/synth/renderer.hpp"
+
+namespace v4r::synth {
+
+std::string box_cao() {
+  return R"CAO(V1
+# v4r built-in model "box": a 0.20 x 0.15 x 0.10 m box (x, y, z), origin at its centre.
+# Units: metres. Faces list their points counter-clockwise seen from outside (normals point out).
+# 3D points
+8
+-0.10 -0.075 -0.05   # 0
+ 0.10 -0.075 -0.05   # 1
+ 0.10  0.075 -0.05   # 2
+-0.10  0.075 -0.05   # 3
+-0.10 -0.075  0.05   # 4
+ 0.10 -0.075  0.05   # 5
+ 0.10  0.075  0.05   # 6
+-0.10  0.075  0.05   # 7
+# 3D lines
+0
+# Faces from 3D lines
+0
+# Faces from 3D points
+6
+4 0 3 2 1   # bottom (z = -0.05)
+4 4 5 6 7   # top    (z = +0.05)
+4 0 1 5 4   # front  (y = -0.075)
+4 2 3 7 6   # back   (y = +0.075)
+4 1 2 6 5   # right  (x = +0.10)
+4 3 0 4 7   # left   (x = -0.10)
+# 3D cylinders
+0
+# 3D circles
+0
+)CAO";
+}
+
+std::string ship_mockup_cao() {
+  return R"CAO(V1
+# v4r built-in model "ship_mockup": welded steel plates, after the mockup of a ship section in
+# the V4R paper (section 6). A base plate 0.40 x 0.30 x 0.02 m, a longitudinal wall
+# 0.36 x 0.02 x 0.12 m near one long side and a transverse wall 0.02 x 0.23 x 0.10 m at an
+# off-centre position, butting against the longitudinal wall. The walls stand on the base plate;
+# their hidden bottom faces (and the transverse wall's end against the longitudinal wall) are
+# left out. The walls are inset from the plate's borders and the transverse wall is lower, so
+# that no two adjacent faces are coplanar: every model edge is a visible image edge.
+# Origin at the centre of the base plate's top face, z up. Units: metres.
+# Faces list their points counter-clockwise seen from outside (normals point out).
+# 3D points
+24
+# base plate: x in [-0.20, 0.20], y in [-0.15, 0.15], z in [-0.02, 0]
+-0.20 -0.15 -0.02   # 0
+ 0.20 -0.15 -0.02   # 1
+ 0.20  0.15 -0.02   # 2
+-0.20  0.15 -0.02   # 3
+-0.20 -0.15  0.00   # 4
+ 0.20 -0.15  0.00   # 5
+ 0.20  0.15  0.00   # 6
+-0.20  0.15  0.00   # 7
+# longitudinal wall: x in [-0.18, 0.18], y in [0.10, 0.12], z in [0, 0.12]
+-0.18  0.10  0.00   # 8
+ 0.18  0.10  0.00   # 9
+ 0.18  0.12  0.00   # 10
+-0.18  0.12  0.00   # 11
+-0.18  0.10  0.12   # 12
+ 0.18  0.10  0.12   # 13
+ 0.18  0.12  0.12   # 14
+-0.18  0.12  0.12   # 15
+# transverse wall: x in [0.06, 0.08], y in [-0.13, 0.10], z in [0, 0.10]
+ 0.06 -0.13  0.00   # 16
+ 0.08 -0.13  0.00   # 17
+ 0.08  0.10  0.00   # 18
+ 0.06  0.10  0.00   # 19
+ 0.06 -0.13  0.10   # 20
+ 0.08 -0.13  0.10   # 21
+ 0.08  0.10  0.10   # 22
+ 0.06  0.10  0.10   # 23
+# 3D lines
+0
+# Faces from 3D lines
+0
+# Faces from 3D points
+15
+4 0 3 2 1       # base bottom (z = -0.02)
+4 4 5 6 7       # base top    (z = 0)
+4 0 1 5 4       # base front  (y = -0.15)
+4 2 3 7 6       # base back   (y = +0.15)
+4 1 2 6 5       # base right  (x = +0.20)
+4 3 0 4 7       # base left   (x = -0.20)
+4 12 13 14 15   # longitudinal wall top   (z = 0.12)
+4 8 9 13 12     # longitudinal wall front (y = 0.10)
+4 10 11 15 14   # longitudinal wall back  (y = 0.12)
+4 9 10 14 13    # longitudinal wall right (x = +0.18)
+4 11 8 12 15    # longitudinal wall left  (x = -0.18)
+4 20 21 22 23   # transverse wall top   (z = 0.10)
+4 16 17 21 20   # transverse wall end   (y = -0.13)
+4 17 18 22 21   # transverse wall right (x = 0.08)
+4 19 16 20 23   # transverse wall left  (x = 0.06)
+# 3D cylinders
+0
+# 3D circles
+0
+)CAO";
+}
+
+geometry::PinholeCamera default_camera() {
+  geometry::PinholeCamera cam;
+  cam.width = 640;
+  cam.height = 480;
+  cam.fx = 600.0;
+  cam.fy = 600.0;
+  cam.cx = 319.5;
+  cam.cy = 239.5;
+  cam.dist = {-0.05, 0.01, 0.0, 0.0, 0.0};
+  return cam;
+}
+
+geometry::SE3 look_at(const Eigen::Vector3d& eye_obj, const Eigen::Vector3d& target_obj,
+                      const Eigen::Vector3d& up_obj) {
+  // Columns of R_obj_cam: camera x (right), y (down), z (forward) in the object frame.
+  const Eigen::Vector3d z = (target_obj - eye_obj).normalized();
+  Eigen::Vector3d down = -up_obj + up_obj.dot(z) * z;
+  if (down.norm() < 1e-9) down = z.unitOrthogonal();
+  const Eigen::Vector3d y = down.normalized();
+  const Eigen::Vector3d x = y.cross(z);
+  Eigen::Matrix3d R_obj_cam;
+  R_obj_cam.col(0) = x;
+  R_obj_cam.col(1) = y;
+  R_obj_cam.col(2) = z;
+  return geometry::SE3(R_obj_cam, eye_obj).inverse();
+}
+
+}  // namespace v4r::synth
