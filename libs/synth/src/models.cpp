@@ -123,19 +123,4 @@ geometry::PinholeCamera default_camera() {
   return cam;
 }
 
-geometry::SE3 look_at(const Eigen::Vector3d& eye_obj, const Eigen::Vector3d& target_obj,
-                      const Eigen::Vector3d& up_obj) {
-  // Columns of R_obj_cam: camera x (right), y (down), z (forward) in the object frame.
-  const Eigen::Vector3d z = (target_obj - eye_obj).normalized();
-  Eigen::Vector3d down = -up_obj + up_obj.dot(z) * z;
-  if (down.norm() < 1e-9) down = z.unitOrthogonal();
-  const Eigen::Vector3d y = down.normalized();
-  const Eigen::Vector3d x = y.cross(z);
-  Eigen::Matrix3d R_obj_cam;
-  R_obj_cam.col(0) = x;
-  R_obj_cam.col(1) = y;
-  R_obj_cam.col(2) = z;
-  return geometry::SE3(R_obj_cam, eye_obj).inverse();
-}
-
 }  // namespace v4r::synth

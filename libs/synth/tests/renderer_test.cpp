@@ -30,7 +30,7 @@ SE3 view(double dist, double elevation_deg, double azimuth_deg) {
   const double el = elevation_deg * std::numbers::pi / 180.0, az = azimuth_deg * std::numbers::pi / 180.0;
   const Eigen::Vector3d eye =
       dist * Eigen::Vector3d(std::cos(el) * std::sin(az), -std::cos(el) * std::cos(az), std::sin(el));
-  return look_at(eye, Eigen::Vector3d::Zero());
+  return geometry::look_at(eye, Eigen::Vector3d::Zero());
 }
 
 RenderOptions clean_options() {

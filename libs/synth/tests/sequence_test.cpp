@@ -111,7 +111,7 @@ TEST(Sequence, WritesAllFiles) {
   const fs::path root = dir.path() / "a" / "b";  // nested: created on demand
   TrajectorySpec spec;
   spec.frames = 3;
-  spec.T0 = look_at(Eigen::Vector3d(0.2, -0.4, 0.35), Eigen::Vector3d::Zero());
+  spec.T0 = geometry::look_at(Eigen::Vector3d(0.2, -0.4, 0.35), Eigen::Vector3d::Zero());
   const auto traj = make_trajectory(spec);
   RenderOptions opt;
   opt.colour = false;
@@ -174,7 +174,7 @@ TEST(Sequence, WritesAllFiles) {
 TEST(Sequence, ErrorsNameThePath) {
   ScratchDir dir("err");
   const auto traj = make_trajectory(
-      TrajectorySpec{.frames = 1, .T0 = look_at(Eigen::Vector3d(0, -0.5, 0.3), Eigen::Vector3d::Zero())});
+      TrajectorySpec{.frames = 1, .T0 = geometry::look_at(Eigen::Vector3d(0, -0.5, 0.3), Eigen::Vector3d::Zero())});
   // A directory below a regular file cannot be created.
   const fs::path blocker = dir.path() / "file";
   std::ofstream(blocker) << "x";

@@ -16,7 +16,7 @@ constexpr double kDeg = std::numbers::pi / 180.0;
 
 TrajectorySpec spec_at_half_metre() {
   TrajectorySpec s;
-  s.T0 = look_at(Eigen::Vector3d(0.2, -0.4, 0.35), Eigen::Vector3d::Zero());
+  s.T0 = geometry::look_at(Eigen::Vector3d(0.2, -0.4, 0.35), Eigen::Vector3d::Zero());
   return s;
 }
 

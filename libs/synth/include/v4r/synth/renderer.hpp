@@ -10,6 +10,7 @@
 
 #include "v4r/core/expected.hpp"
 #include "v4r/geometry/camera.hpp"
+#include "v4r/geometry/look_at.hpp"
 #include "v4r/geometry/se3.hpp"
 #include "v4r/model/model.hpp"
 
@@ -82,12 +83,6 @@ std::string ship_mockup_cao();
 
 /// A default 640x480 camera (f = 600 px, principal point at the centre, mild distortion).
 geometry::PinholeCamera default_camera();
-
-/// \brief Pose T_cam_obj of a camera at `eye_obj` (object frame, metres) looking at
-/// `target_obj`, with `up_obj` pointing up in the image (camera -y). `up_obj` must not be
-/// parallel to the viewing direction.
-geometry::SE3 look_at(const Eigen::Vector3d& eye_obj, const Eigen::Vector3d& target_obj,
-                      const Eigen::Vector3d& up_obj = Eigen::Vector3d::UnitZ());
 
 /// \brief Renders a whole sequence into `dir` (created if needed): frames/000000.png ...,
 /// gt.csv (frame,tx,ty,tz,qw,qx,qy,qz), camera.yaml, init_pose.txt (pose of frame 0) and
