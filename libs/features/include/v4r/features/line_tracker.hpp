@@ -33,6 +33,8 @@ struct Segment2 {
 
 /// \brief Result of tracking one edge in one window.
 struct LineMeasurement {
+  /// True when the edge was found. When false, the fields below may still describe the best
+  /// rejected fit (for diagnostics), or stay zero when no fit was possible.
   bool found = false;
   /// Two points of the fitted image line (pixels), at the window's first and last rows: the
   /// observed line is the infinite line through them; a->b keeps the direction of the prediction.
@@ -79,7 +81,7 @@ class LineTracker {
   struct LineFit { double u0 = 0.0, s = 0.0; };  // u = u0 + s * v (window coordinates, pixels)
 
   std::uint32_t next_random();
-  int score_line(const LineFit& line, int sign, float* strength_sum);  // fills inlier_idx_
+  int score_line(const LineFit& line, int sign, float* strength_sum);  // fills inlier_idx_, returns count
   bool fit_inliers(int count, LineFit* out) const;
 
   LineTrackerParams p_;
@@ -93,6 +95,7 @@ class LineTracker {
   std::vector<Edgel> edgels_;    // rows x max_candidates_per_row, row-major slots
   std::vector<int> row_count_;   // rows: edgels held in each row's slots
   std::vector<int> pool_;        // flat indices of all edgels (RANSAC sampling)
+  std::vector<float> pool_cum_;  // prefix sums of the pool's strengths (weighted sampling)
   std::vector<int> inlier_idx_;  // rows: edgel index of each inlier (at most one per row)
   std::vector<Eigen::Vector2d> last_inliers_;
   std::uint32_t rng_ = 1;
