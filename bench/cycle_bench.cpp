@@ -64,4 +64,3 @@ BENCHMARK(BM_VisionCycle)->Arg(0)->Arg(1)->ArgName("ship")->Unit(benchmark::kMic
 
 }  // namespace
 
-BENCHMARK_MAIN();

@@ -122,4 +122,3 @@ BENCHMARK(BM_LineTrackRowsCandidates)->ArgsProduct({{12, 24, 48}, {3, 4}});
 
 }  // namespace
 
-BENCHMARK_MAIN();

@@ -42,15 +42,21 @@ struct PoseSolverParams {
   /// discrepancy gets sigma * cos(theta) (ray angle to the optical axis), for a line both plane
   /// distances get sigma * sqrt(1 - n_z^2). false: sigma_px * z / focal_px for everything.
   bool oblique_weighting = true;
-  /// Before the remove-largest loop, run an IRLS pass with Cauchy weights (and a scale estimated
-  /// from the median residual) from T_init, then reject what it marks as gross errors; rejected
-  /// observations that agree with the final pose are re-admitted once.
+  /// Before the remove-largest loop, run an IRLS pass with Cauchy weights (scale estimated from
+  /// the 30 % quantile of the residuals) from T_init and reject what it marks as gross errors, so
+  /// that they no longer pull the plain solution. The pass is discarded when it would reject more
+  /// than half of the observations or its scale exceeds max_threshold_scale.
   bool robust_init = true;
   double cauchy_c = 2.385;          ///< Cauchy constant of the IRLS pass (units of sigma)
   int robust_max_iterations = 30;   ///< iterations of the IRLS pass
-  /// Multiply outlier_threshold by max(1, s), s the median-based noise scale of the robust pass, so
-  /// that an a-priori sigma that is too optimistic does not turn inliers into outliers.
+  double robust_step_tolerance = 1e-6;  ///< the IRLS pass stops when |delta| (m / rad) falls below
+  /// Multiply outlier_threshold by max(1, s_low), s_low a lower confidence bound of the
+  /// quantile-based noise scale of the robust pass, so that an a-priori sigma that is too
+  /// optimistic does not turn inliers into outliers (only with robust_init).
   bool adaptive_threshold = true;
+  /// A robust pass whose (lower-bound) noise scale exceeds this is taken as pulled by gross
+  /// errors and discarded (the remove-largest loop starts from T_init with the a-priori threshold).
+  double max_threshold_scale = 3.0;
   /// Covariance = max(sigma0, min_sigma0)^2 * H^-1: a-posteriori scaling, but never more than
   /// 1/min_sigma0^2 times tighter than the a-priori covariance (protects a downstream filter when
   /// the redundancy is small and sigma0 happens to come out tiny).
@@ -71,7 +77,7 @@ struct PoseResult {
   int inliers = 0;          ///< observations kept after outlier removal
   double rms_px = 0.0;      ///< RMS residual of the inliers, converted to pixels
   double sigma0 = 1.0;      ///< a-posteriori standard deviation of unit weight
-  double noise_scale = 1.0;  ///< median-based noise scale of the robust pass (units of a-priori sigma)
+  double noise_scale = 1.0;  ///< noise scale found by the robust pass (units of a-priori sigma; 1 without it)
   int outlier_rounds = 0;   ///< observations removed by the remove-largest loop (after the robust pass)
   bool converged = false;   ///< the last Gauss-Newton run reached step_tolerance
   [[nodiscard]] bool ok() const { return status == SolveStatus::kOk; }
@@ -90,7 +96,19 @@ class PoseSolver {
   PoseSolverParams& params() { return p_; }
 
   /// Solve from `T_init`. `point_inlier` / `line_inlier`, when non-empty, must have the sizes of
-  /// the observation spans and receive 1 for kept and 0 for rejected observations.
+  /// the observation spans and receive 1 for kept and 0 for rejected observations (spans of any
+  /// other size are left untouched). Invalid observations (non-finite values, sigma_px <= 0, two
+  /// coincident line points) are rejected up front and flagged 0. Status: kTooFewObservations
+  /// below min_observations valid observations or 6 scalar residuals, kDegenerate for a
+  /// rank-deficient normal matrix (e.g. all points identical) or focal_px <= 0, kDiverged for a
+  /// non-finite T_init or step or a final pose with observed points at or behind the camera. On
+  /// failure T_cam_obj is T_init and the covariance zero.
+  ///
+  /// Flow: optional robust pass (see PoseSolverParams::robust_init), then plain weighted least
+  /// squares removing the active observation with the largest standardised residual (residual
+  /// over its own standard deviation, I - J H^-1 J^T; for the two scalar residuals of one
+  /// observation the RMS) while it exceeds the threshold; once, rejected observations whose
+  /// prediction error is within the threshold are re-admitted and the loop repeats.
   PoseResult solve(const geometry::SE3& T_init, std::span<const PointObservation> points,
                    std::span<const LineObservation> lines, std::span<std::uint8_t> point_inlier = {},
                    std::span<std::uint8_t> line_inlier = {});
@@ -116,7 +134,7 @@ class PoseSolver {
   void update_robust_weights(double scale);
   void statistics(const geometry::SE3& T, const geometry::Matrix6d& H_inv, std::span<const PointObservation> points,
                   std::span<const LineObservation> lines, Statistic kind);
-  double median_scale();
+  double quantile_scale();
   int count_active() const;
 
   PoseSolverParams p_;
