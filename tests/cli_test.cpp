@@ -12,7 +12,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-struct Run {
+struct CliRun {
   int code = -1;
   std::string out, err;
 };
@@ -30,18 +30,18 @@ class Cli : public ::testing::Test {
     dir_ = fs::temp_directory_path() / ("v4r_cli_test_" + std::to_string(::getpid()));
     fs::remove_all(dir_);
     fs::create_directories(dir_);
-    const Run r = run("render --model box --frames 8 --out " + (dir_ / "seq").string());
+    const CliRun r = run("render --model box --frames 8 --out " + (dir_ / "seq").string());
     ASSERT_EQ(r.code, 0) << r.err;
   }
   static void TearDownTestSuite() { fs::remove_all(dir_); }
 
-  static Run run(const std::string& args) {
+  static CliRun run(const std::string& args) {
     static int counter = 0;
     const fs::path out = dir_ / ("out" + std::to_string(counter) + ".txt");
     const fs::path err = dir_ / ("err" + std::to_string(counter++) + ".txt");
     const std::string cmd = std::string(V4R_CLI) + " " + args + " >" + out.string() + " 2>" + err.string();
     const int status = std::system(cmd.c_str());
-    Run r;
+    CliRun r;
     r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
     r.out = slurp(out);
     r.err = slurp(err);
@@ -65,7 +65,7 @@ TEST_F(Cli, RenderWritesSequenceWithGroundTruth) {
 }
 
 TEST_F(Cli, TrackWritesPoseCsvAndOverlay) {
-  const Run r = run(track_args(seq("model.cao"), seq("camera.yaml"), seq("frames"), seq("init_pose.txt")) +
+  const CliRun r = run(track_args(seq("model.cao"), seq("camera.yaml"), seq("frames"), seq("init_pose.txt")) +
                     " --gt " + seq("gt.csv") + " --overlay " + (dir_ / "overlay").string());
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("translation error"), std::string::npos) << r.out;
@@ -85,15 +85,18 @@ TEST_F(Cli, TrackWritesPoseCsvAndOverlay) {
 }
 
 TEST_F(Cli, TrackAcceptsPatternAndInlinePose) {
-  const std::string pose = slurp(seq("init_pose.txt"));
-  const Run r = run("track --model " + seq("model.cao") + " --camera " + seq("camera.yaml") + " --input " +
-                    seq("frames/%06d.png") + " --init-pose \"" + pose.substr(0, pose.find('\n')) + "\" --output " +
+  std::string pose;
+  std::istringstream lines(slurp(seq("init_pose.txt")));
+  for (std::string l; std::getline(lines, l);)
+    if (!l.empty() && l[0] != '#') pose = l;
+  const CliRun r = run("track --model " + seq("model.cao") + " --camera " + seq("camera.yaml") + " --input " +
+                    seq("frames/%06d.png") + " --init-pose \"" + pose + "\" --output " +
                     (dir_ / "p2.csv").string());
   ASSERT_EQ(r.code, 0) << r.err;
 }
 
 TEST_F(Cli, MissingModelIsNamed) {
-  const Run r = run(track_args("/nonexistent/m.cao", seq("camera.yaml"), seq("frames"), seq("init_pose.txt")));
+  const CliRun r = run(track_args("/nonexistent/m.cao", seq("camera.yaml"), seq("frames"), seq("init_pose.txt")));
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find("/nonexistent/m.cao"), std::string::npos) << r.err;
 }
@@ -101,7 +104,7 @@ TEST_F(Cli, MissingModelIsNamed) {
 TEST_F(Cli, MalformedModelNamesFileAndLine) {
   const fs::path bad = dir_ / "bad.cao";
   std::ofstream(bad) << "V1\n# points\n3\n0 0 0\n1 0 zero\n";
-  const Run r = run(track_args(bad.string(), seq("camera.yaml"), seq("frames"), seq("init_pose.txt")));
+  const CliRun r = run(track_args(bad.string(), seq("camera.yaml"), seq("frames"), seq("init_pose.txt")));
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find(bad.string() + ":5"), std::string::npos) << r.err;
 }
@@ -109,7 +112,7 @@ TEST_F(Cli, MalformedModelNamesFileAndLine) {
 TEST_F(Cli, UnsupportedModelFormat) {
   const fs::path bad = dir_ / "m.xyz";
   std::ofstream(bad) << "hello\n";
-  const Run r = run(track_args(bad.string(), seq("camera.yaml"), seq("frames"), seq("init_pose.txt")));
+  const CliRun r = run(track_args(bad.string(), seq("camera.yaml"), seq("frames"), seq("init_pose.txt")));
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find("unsupported model format"), std::string::npos) << r.err;
 }
@@ -117,7 +120,7 @@ TEST_F(Cli, UnsupportedModelFormat) {
 TEST_F(Cli, MalformedCameraIsNamed) {
   const fs::path bad = dir_ / "cam.yaml";
   std::ofstream(bad) << "%YAML:1.0\n---\nimage_width: 640\nimage_height: -3\n";
-  const Run r = run(track_args(seq("model.cao"), bad.string(), seq("frames"), seq("init_pose.txt")));
+  const CliRun r = run(track_args(seq("model.cao"), bad.string(), seq("frames"), seq("init_pose.txt")));
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find(bad.string()), std::string::npos) << r.err;
 }
@@ -125,14 +128,14 @@ TEST_F(Cli, MalformedCameraIsNamed) {
 TEST_F(Cli, MalformedPoseFileIsNamed) {
   const fs::path bad = dir_ / "pose.txt";
   std::ofstream(bad) << "0.1 0.2 0.5 0 0\n";
-  const Run r = run(track_args(seq("model.cao"), seq("camera.yaml"), seq("frames"), bad.string()));
+  const CliRun r = run(track_args(seq("model.cao"), seq("camera.yaml"), seq("frames"), bad.string()));
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find(bad.string()), std::string::npos) << r.err;
 }
 
 TEST_F(Cli, EmptyInputFolder) {
   fs::create_directories(dir_ / "empty");
-  const Run r = run(track_args(seq("model.cao"), seq("camera.yaml"), (dir_ / "empty").string(), seq("init_pose.txt")));
+  const CliRun r = run(track_args(seq("model.cao"), seq("camera.yaml"), (dir_ / "empty").string(), seq("init_pose.txt")));
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find("empty"), std::string::npos) << r.err;
 }
@@ -143,7 +146,7 @@ TEST_F(Cli, TruncatedImageIsNamed) {
   fs::copy_file(seq("frames/000000.png"), frames / "000000.png");
   const std::string png = slurp(seq("frames/000001.png"));
   std::ofstream(frames / "000001.png", std::ios::binary) << png.substr(0, png.size() / 3);
-  const Run r = run(track_args(seq("model.cao"), seq("camera.yaml"), frames.string(), seq("init_pose.txt")));
+  const CliRun r = run(track_args(seq("model.cao"), seq("camera.yaml"), frames.string(), seq("init_pose.txt")));
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find("000001.png"), std::string::npos) << r.err;
 }
@@ -155,13 +158,13 @@ TEST_F(Cli, ImageSizeMismatchWithCalibration) {
   ASSERT_NE(p, std::string::npos);
   text.replace(p, text.find('\n', p) - p, "image_width: 320");
   std::ofstream(cam) << text;
-  const Run r = run(track_args(seq("model.cao"), cam.string(), seq("frames"), seq("init_pose.txt")));
+  const CliRun r = run(track_args(seq("model.cao"), cam.string(), seq("frames"), seq("init_pose.txt")));
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find("000000.png"), std::string::npos) << r.err;
 }
 
 TEST_F(Cli, MissingRequiredOptionIsAUsageError) {
-  const Run r = run("track --model " + seq("model.cao"));
+  const CliRun r = run("track --model " + seq("model.cao"));
   EXPECT_NE(r.code, 0);
   EXPECT_NE(r.err.find("--camera"), std::string::npos) << r.err;
 }

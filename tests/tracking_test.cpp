@@ -23,6 +23,8 @@ struct SequenceCase {
   double speed;
 };
 
+void PrintTo(const SequenceCase& c, std::ostream* os) { *os << c.name; }
+
 struct SequenceResult {
   pipeline::AccuracyStats acc;
   int lost = 0;

@@ -47,6 +47,8 @@ void VisibilityTester::update(const model::Model& model, const geometry::SE3& T_
   const Eigen::Vector3d& t = T_cam_obj.translation();
   const Eigen::Vector3d cam_in_obj = -(R.transpose() * t);
   const double cos_appear = std::cos(p_.appear_angle), cos_disappear = std::cos(p_.disappear_angle);
+  const double cos_grazing = std::cos(p_.grazing_angle);
+  if (grazing_.size() < faces.size()) grazing_.resize(faces.size());
 
   faces_.resize(faces.size());
   std::size_t total_vertices = 0;
@@ -70,6 +72,7 @@ void VisibilityTester::update(const model::Model& model, const geometry::SE3& T_
     const bool was = fi < face_visible.size() && face_visible[fi] != 0;
     const bool now = was ? cosang > cos_disappear : cosang > cos_appear;
     if (fi < face_visible.size()) face_visible[fi] = now ? 1 : 0;
+    grazing_[fi] = !now && cosang > cos_grazing ? 1 : 0;
     // Occluder cache: any face facing the camera (strictly) can hide edges behind it.
     c.usable = f.normal.dot(cam_in_obj - p0) > 0.0;
     c.n_cam = R * f.normal;
@@ -104,7 +107,10 @@ void VisibilityTester::update(const model::Model& model, const geometry::SE3& T_
     if (has_l || has_r) {
       const bool vl = has_l && face_visible[e.face_left];
       const bool vr = has_r && face_visible[e.face_right];
-      if (!vl && !vr) continue;
+      if (!vl && !vr) {
+        v.grazing = (has_l && grazing_[e.face_left]) || (has_r && grazing_[e.face_right]);
+        continue;
+      }
       if (has_l && has_r && faces[e.face_left].normal.dot(faces[e.face_right].normal) > std::cos(p_.crease_angle))
         continue;
     }

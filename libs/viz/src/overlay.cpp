@@ -25,6 +25,7 @@ void draw_overlay(cv::Mat& bgr, const scene::Scene& scene, const pipeline::Visio
         cv::Scalar colour(0, 0, 255);
         if (f.status == scene::FeatureStatus::kFound) colour = cv::Scalar(0, 255, 0);
         if (f.status == scene::FeatureStatus::kOutlier) colour = cv::Scalar(0, 255, 255);
+        if (f.ambiguous) colour = cv::Scalar(160, 160, 160);
         // The model edge projected with the final pose, piecewise so that distortion shows.
         constexpr int kPieces = 8;
         Eigen::Vector2d prev = K.project(T * f.X1);

@@ -54,7 +54,10 @@ struct PinholeCamera {
       const double radial = 1.0 + r2 * (dist[0] + r2 * (dist[1] + r2 * dist[4]));
       const double dx = 2.0 * dist[2] * x.x() * x.y() + dist[3] * (r2 + 2.0 * x.x() * x.x());
       const double dy = dist[2] * (r2 + 2.0 * x.y() * x.y()) + 2.0 * dist[3] * x.x() * x.y();
-      x = Eigen::Vector2d((xd.x() - dx) / radial, (xd.y() - dy) / radial);
+      const Eigen::Vector2d next((xd.x() - dx) / radial, (xd.y() - dy) / radial);
+      const double step = (next - x).squaredNorm();
+      x = next;
+      if (step < 1e-24) break;  // converged to ~1e-12 (normalised units)
     }
     return x;
   }

@@ -15,8 +15,9 @@ namespace v4r::pipeline {
 
 /// \brief Parameters of the visibility test (issue: only edges that can be seen are tracked).
 struct VisibilityParams {
-  double appear_angle = 1.40;     ///< radians: a hidden face becomes visible below this view angle
-  double disappear_angle = 1.48;  ///< radians: a visible face becomes hidden above this view angle
+  double appear_angle = 1.562;    ///< radians: a hidden face becomes visible below this view angle
+  double disappear_angle = 1.569; ///< radians: a visible face becomes hidden above this view angle
+  double grazing_angle = 1.65;    ///< radians: hidden faces below this view angle may still show as slivers
   double crease_angle = 0.05;     ///< radians: an edge between faces closer than this in normal is no edge
   int samples = 12;               ///< points per edge tested for occlusion and image bounds
   double image_margin = 4.0;      ///< pixels: points nearer the border count as outside
@@ -26,6 +27,9 @@ struct VisibilityParams {
 /// \brief The visible part of a model edge: parameters s0 < s1 in [0, 1] along a->b.
 struct EdgeVisibility {
   bool visible = false;
+  /// Not visible, but bounding a face seen at a grazing angle: with a slightly different pose it
+  /// may show as a sliver next to a visible edge. Not tracked; used to detect ambiguous edges.
+  bool grazing = false;
   double s0 = 0.0, s1 = 1.0;
 };
 
@@ -58,6 +62,7 @@ class VisibilityTester {
   std::vector<FaceCache> faces_;
   std::vector<Eigen::Vector2d> poly_;
   std::vector<std::uint8_t> sample_ok_;
+  std::vector<std::uint8_t> grazing_;  // per face: hidden but seen at a grazing angle
 };
 
 }  // namespace v4r::pipeline

@@ -19,10 +19,13 @@ struct CycleParams {
   int search_half_width = 16;          ///< pixels: half width of the window of features not found (yet)
   estimation::PoseSolverParams solver;
   VisibilityParams visibility;
-  double line_sigma_px = 1.0;          ///< a-priori noise of a tracked line, pixels
+  double line_sigma_px = 0.5;          ///< a-priori noise of a tracked line, pixels
   int min_lines = 4;                   ///< fewer found lines than this: the view pose is not updated
   double degraded_ratio = 0.5;         ///< used / visible below this: status degraded
-  int refine_passes = 2;               ///< track + solve passes per frame (later passes use the new pose)
+  int refine_passes = 2;               ///< track + solve passes per frame (later ones re-measure missed features from the new pose)
+  double ambiguity_angle = 0.2;        ///< radians: edges closer than this in image direction count as parallel
+  double ambiguity_margin_px = 2.0;    ///< parallel edges closer than track.half_width + this are ambiguous
+  double ambiguity_min_overlap = 0.2;  ///< ... if they overlap by this fraction of the shorter one
 };
 
 /// \brief What one cycle did for one object.
@@ -67,8 +70,8 @@ class VisionCycle {
   void prepare(const scene::Scene& scene);
   void process_view(scene::Object& obj, scene::View& view, const scene::Camera& cam, const image::ImageView& img,
                     ObjectReport& rep);
-  int track_features(scene::View& view, const scene::Camera& cam, const image::ImageView& img, bool first_pass,
-                     bool record);
+  void mark_ambiguous(scene::View& view, const scene::Camera& cam) const;
+  int track_features(scene::View& view, const scene::Camera& cam, const image::ImageView& img, bool first_pass);
 
   CycleParams p_;
   features::LineTracker tracker_, searcher_;
@@ -79,6 +82,7 @@ class VisionCycle {
   std::vector<std::uint32_t> line_obs_feature_;
   std::vector<std::uint8_t> line_inlier_;
   std::vector<std::vector<Eigen::Vector2d>> edgels_;
+  std::vector<Eigen::Vector2d> undistorted_;  // edge pixels of one feature, normalised
   CycleReport report_;
   std::int64_t frame_ = 0;
 };

@@ -38,10 +38,14 @@ struct LineFeature {
   model::Index edge = model::kNone;  ///< index into Model::lines()
   FeatureStatus status = FeatureStatus::kNotFound;
   bool visible = false;               ///< visible in the current prediction
+  bool ambiguous = false;             ///< visible, but side by side with another edge: not tracked
+  bool grazing = false;               ///< hidden, but bounds a face seen at a grazing angle (may show as a sliver)
   Eigen::Vector3d X1 = Eigen::Vector3d::Zero(), X2 = Eigen::Vector3d::Zero();  ///< visible part, object frame
   features::Segment2 predicted;       ///< projection of the visible part (pixels)
   features::LineTrackState track;     ///< state the tracker carries between frames
-  features::LineMeasurement measurement;  ///< last measurement
+  features::LineMeasurement measurement;  ///< last measurement (pixels)
+  Eigen::Vector2d line_n1 = Eigen::Vector2d::Zero(), line_n2 = Eigen::Vector2d::Zero();  ///< measured line, normalised undistorted coordinates
+  bool retrack = false;               ///< transient: measure again in the next pass of this cycle
   int frames_missing = 0;             ///< consecutive frames not found
 };
 

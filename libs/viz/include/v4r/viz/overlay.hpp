@@ -9,7 +9,7 @@
 namespace v4r::viz {
 
 /// \brief Draws what the vision cycle saw into a BGR image of camera `camera`: the projected
-/// model edges (green: found and used, yellow: outlier, red: visible but not found), the edge
+/// model edges (green: found, yellow: outlier, red: visible but not found, grey: ambiguous), the edge
 /// pixels found (cyan) and a status line per object.
 void draw_overlay(cv::Mat& bgr, const scene::Scene& scene, const pipeline::VisionCycle& cycle, std::size_t camera,
                   const pipeline::CycleReport& report);
