@@ -1,0 +1,200 @@
+// v4r - robust model-based object tracking. MIT licence.
+#include <cmath>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "v4r/geometry/look_at.hpp"
+#include "v4r/model/cao_reader.hpp"
+#include "v4r/pipeline/visibility.hpp"
+
+using namespace v4r;
+
+namespace {
+
+geometry::PinholeCamera camera() {
+  geometry::PinholeCamera c;
+  c.width = 640;
+  c.height = 480;
+  c.fx = c.fy = 600;
+  c.cx = 319.5;
+  c.cy = 239.5;
+  return c;
+}
+
+model::Model parse(const char* text) {
+  auto m = model::parse_cao(text, "test.cao");
+  EXPECT_TRUE(m.has_value()) << (m ? "" : m.error().to_string());
+  return std::move(*m);
+}
+
+const char* kBox = R"(V1
+8
+-0.10 -0.075 -0.05
+ 0.10 -0.075 -0.05
+ 0.10  0.075 -0.05
+-0.10  0.075 -0.05
+-0.10 -0.075  0.05
+ 0.10 -0.075  0.05
+ 0.10  0.075  0.05
+-0.10  0.075  0.05
+0
+0
+6
+4 0 3 2 1
+4 4 5 6 7
+4 0 1 5 4
+4 2 3 7 6
+4 1 2 6 5
+4 3 0 4 7
+0
+0
+)";
+
+// A 0.4 m square plate (z = 0, facing +z) with a thin bar floating 5 cm above it across its
+// middle, sticking out past the plate's front and back edges: the bar hides the middle of them.
+const char* kPlateAndBar = R"(V1
+12
+-0.2 -0.2 0
+ 0.2 -0.2 0
+ 0.2  0.2 0
+-0.2  0.2 0
+-0.03 -0.3 0.05
+ 0.03 -0.3 0.05
+ 0.03  0.3 0.05
+-0.03  0.3 0.05
+-0.03 -0.3 0.04
+ 0.03 -0.3 0.04
+ 0.03  0.3 0.04
+-0.03  0.3 0.04
+0
+0
+2
+4 0 1 2 3
+4 4 5 6 7
+0
+0
+)";
+
+struct Fixture {
+  model::Model m;
+  std::vector<std::uint8_t> face_vis;
+  std::vector<pipeline::EdgeVisibility> out;
+  explicit Fixture(const char* text) : m(parse(text)), face_vis(m.faces().size(), 0), out(m.lines().size()) {}
+};
+
+}  // namespace
+
+TEST(Visibility, ConvexBoxShowsExactlyTheEdgesOfFrontFacingFaces) {
+  Fixture f(kBox);
+  pipeline::VisibilityTester vt;
+  for (double az : {-2.5, -1.2, -0.6, 0.3, 1.1, 2.2}) {
+    for (double el : {0.3, 0.7, 1.1}) {
+      const geometry::SE3 T = geometry::look_at(0.6, az, el);
+      std::fill(f.face_vis.begin(), f.face_vis.end(), 0);
+      vt.update(f.m, T, camera(), f.face_vis, f.out);
+      const Eigen::Vector3d cam_obj = T.inverse().translation();
+      int expected = 0, got = 0;
+      for (std::size_t li = 0; li < f.m.lines().size(); ++li) {
+        const auto& e = f.m.lines()[li];
+        auto front = [&](model::Index fi) {
+          const auto& face = f.m.faces()[fi];
+          return face.normal.dot(cam_obj - f.m.junctions()[face.loop[0]].p) > 0;
+        };
+        const bool vis = front(e.face_left) || front(e.face_right);
+        expected += vis;
+        got += f.out[li].visible;
+        EXPECT_EQ(f.out[li].visible, vis) << "az " << az << " el " << el << " line " << li;
+        if (f.out[li].visible) {
+          EXPECT_DOUBLE_EQ(f.out[li].s0, 0.0);  // a convex object hides nothing of itself
+          EXPECT_DOUBLE_EQ(f.out[li].s1, 1.0);
+        }
+      }
+      EXPECT_GE(got, 7);
+      EXPECT_LE(got, 9);
+      EXPECT_EQ(got, expected);
+    }
+  }
+}
+
+TEST(Visibility, FaceHysteresisBetweenAppearAndDisappearAngles) {
+  Fixture f(kBox);
+  pipeline::VisibilityParams p;
+  p.appear_angle = 80.0 * M_PI / 180.0;
+  p.disappear_angle = 85.0 * M_PI / 180.0;
+  pipeline::VisibilityTester vt(p);
+  // Top face (index 1, normal +z) seen at 82.5 degrees: elevation 7.5 degrees above the top plane,
+  // looking at the top face's centre from far away (so the angle is the same over the face).
+  const Eigen::Vector3d top(0, 0, 0.05);
+  const double el = 7.5 * M_PI / 180.0;
+  const Eigen::Vector3d eye = top + 5.0 * Eigen::Vector3d(std::cos(el), 0, std::sin(el));
+  const geometry::SE3 T = geometry::look_at(eye, top);
+  f.face_vis.assign(f.face_vis.size(), 0);
+  vt.update(f.m, T, camera(), f.face_vis, f.out);
+  EXPECT_EQ(f.face_vis[1], 0) << "a hidden face does not appear before the appear angle";
+  f.face_vis[1] = 1;
+  vt.update(f.m, T, camera(), f.face_vis, f.out);
+  EXPECT_EQ(f.face_vis[1], 1) << "a visible face stays until the disappear angle";
+  // At 87 degrees it disappears; at 78 it appears.
+  for (auto [deg, expect] : {std::pair{87.0, 0}, std::pair{78.0, 1}}) {
+    const double e2 = (90.0 - deg) * M_PI / 180.0;
+    const Eigen::Vector3d eye2 = top + 5.0 * Eigen::Vector3d(std::cos(e2), 0, std::sin(e2));
+    vt.update(f.m, geometry::look_at(eye2, top), camera(), f.face_vis, f.out);
+    EXPECT_EQ(f.face_vis[1], expect) << deg;
+  }
+}
+
+TEST(Visibility, EdgesBehindAnotherFaceAreCut) {
+  Fixture f(kPlateAndBar);
+  pipeline::VisibilityTester vt;
+  // Straight above, 1 m up: the plate's edges y = -0.2 and y = +0.2 pass under the bar for
+  // |x| < 0.03 (seen from the camera, almost exactly), so their longest visible run is one side.
+  const geometry::SE3 T = geometry::look_at(Eigen::Vector3d(0.001, 0.0, 1.0), Eigen::Vector3d::Zero(),
+                                            Eigen::Vector3d::UnitY());
+  vt.update(f.m, T, camera(), f.face_vis, f.out);
+  int cut = 0;
+  for (std::size_t li = 0; li < f.m.lines().size(); ++li) {
+    const auto& e = f.m.lines()[li];
+    const Eigen::Vector3d a = f.m.junctions()[e.a].p, b = f.m.junctions()[e.b].p;
+    if (a.z() != 0.0 || b.z() != 0.0) continue;  // only the plate's edges
+    ASSERT_TRUE(f.out[li].visible) << li;
+    const bool under_bar = std::abs(a.x() - b.x()) > 0.3;  // the edges along x cross under the bar
+    if (under_bar) {
+      ++cut;
+      const Eigen::Vector3d p0 = a + f.out[li].s0 * (b - a), p1 = a + f.out[li].s1 * (b - a);
+      // The visible run must stay off the bar (|x| >= 0.03, with the sampling's resolution).
+      const double lo = std::min(p0.x(), p1.x()), hi = std::max(p0.x(), p1.x());
+      EXPECT_TRUE(hi <= -0.03 + 1e-9 || lo >= 0.03 - 1e-9) << "run " << lo << " .. " << hi;
+      EXPECT_GT(hi - lo, 0.12);
+    } else {
+      EXPECT_DOUBLE_EQ(f.out[li].s0, 0.0);
+      EXPECT_DOUBLE_EQ(f.out[li].s1, 1.0);
+    }
+  }
+  EXPECT_EQ(cut, 2);
+}
+
+TEST(Visibility, EdgesLeavingTheImageAreClippedAndShortOnesDropped) {
+  Fixture f(kBox);
+  pipeline::VisibilityTester vt;
+  // The box far to the left: part of it outside the image.
+  geometry::SE3 T = geometry::look_at(0.6, -0.6, 0.7);
+  T.set_translation(T.translation() + Eigen::Vector3d(-0.33, 0, 0));
+  vt.update(f.m, T, camera(), f.face_vis, f.out);
+  const geometry::PinholeCamera cam = camera();
+  int clipped = 0;
+  for (std::size_t li = 0; li < f.m.lines().size(); ++li) {
+    if (!f.out[li].visible) continue;
+    const Eigen::Vector3d a = f.m.line_point_a(li), b = f.m.line_point_b(li);
+    const Eigen::Vector2d pa = cam.project(T * (a + f.out[li].s0 * (b - a)));
+    const Eigen::Vector2d pb = cam.project(T * (a + f.out[li].s1 * (b - a)));
+    EXPECT_TRUE(cam.in_image(pa)) << li;
+    EXPECT_TRUE(cam.in_image(pb)) << li;
+    if (f.out[li].s0 > 0 || f.out[li].s1 < 1) ++clipped;
+  }
+  EXPECT_GE(clipped, 1);
+  // Entirely behind the camera: nothing visible.
+  T.set_translation(Eigen::Vector3d(0, 0, -1.0));
+  vt.update(f.m, T, cam, f.face_vis, f.out);
+  for (const auto& v : f.out) EXPECT_FALSE(v.visible);
+}
