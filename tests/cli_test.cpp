@@ -168,3 +168,28 @@ TEST_F(Cli, MissingRequiredOptionIsAUsageError) {
   EXPECT_NE(r.code, 0);
   EXPECT_NE(r.err.find("--camera"), std::string::npos) << r.err;
 }
+
+TEST_F(Cli, EffectiveConfigurationRoundTripsAndTracks) {
+  const CliRun printed = run("config --set track.rows=20");
+  ASSERT_EQ(printed.code, 0) << printed.err;
+  EXPECT_NE(printed.out.find("rows: 20"), std::string::npos) << printed.out;
+  const fs::path cfg = dir_ / "effective.yaml";
+  std::ofstream(cfg) << printed.out;
+  const CliRun r = run(track_args(seq("model.cao"), seq("camera.yaml"), seq("frames"), seq("init_pose.txt")) +
+                       " --config " + cfg.string());
+  EXPECT_EQ(r.code, 0) << r.err;
+}
+
+TEST_F(Cli, ConfigErrorsNameFileLineAndKey) {
+  const fs::path cfg = dir_ / "bad_config.yaml";
+  std::ofstream(cfg) << "track:\n  rows: 24\n  half_widht: 8\n";
+  const CliRun r = run(track_args(seq("model.cao"), seq("camera.yaml"), seq("frames"), seq("init_pose.txt")) +
+                       " --config " + cfg.string());
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find(cfg.string() + ":3:"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("track.half_widht"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("did you mean 'track.half_width'"), std::string::npos) << r.err;
+  const CliRun s = run("config --set solver.line_sigma=-1");
+  EXPECT_EQ(s.code, 1);
+  EXPECT_NE(s.err.find("out of range"), std::string::npos) << s.err;
+}

@@ -10,6 +10,8 @@
 #include "app.hpp"
 #include "v4r/geometry/look_at.hpp"
 #include "v4r/io/camera_io.hpp"
+#include "v4r/io/config_io.hpp"
+#include "v4r/pipeline/params.hpp"
 #include "v4r/io/frame_source.hpp"
 #include "v4r/io/pose_io.hpp"
 #include "v4r/model/cao_reader.hpp"
@@ -142,6 +144,27 @@ int cmd_bench(const RenderArgs& a, int repeat) {
   return 0;
 }
 
+/// Applies --config FILE and then each --set key=value to the cycle parameters.
+Expected<void> configure(pipeline::CycleParams& params, const std::string& config_file,
+                         const std::vector<std::string>& sets) {
+  ParamRegistry reg = pipeline::make_registry(params);
+  if (!config_file.empty()) {
+    auto r = io::apply_config_file(config_file, reg);
+    if (!r) return r;
+  }
+  for (const std::string& kv : sets) {
+    const auto eq = kv.find('=');
+    if (eq == std::string::npos) return make_error(fmt::format("--set expects key=value, got '{}'", kv));
+    auto r = reg.set(kv.substr(0, eq), kv.substr(eq + 1));
+    if (!r) {
+      Error e = r.error();
+      e.file = "--set";
+      return Unexpected{std::move(e)};
+    }
+  }
+  return {};
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -161,6 +184,10 @@ int main(int argc, char** argv) {
     track->add_option("--output", to.output_csv, "Pose CSV to write")->required();
     track->add_option("--overlay", to.overlay, "Overlay video (.avi/.mp4) or folder of PNGs");
     track->add_option("--gt", to.gt_csv, "Ground-truth CSV: print accuracy");
+    std::string config_file;
+    std::vector<std::string> sets;
+    track->add_option("--config", config_file, "YAML file of tracker parameters (see `v4r config`)");
+    track->add_option("--set", sets, "Set one parameter: --set track.rows=32 (repeatable)");
 
     RenderArgs ra;
     auto* render = app.add_subcommand("render", "Render a synthetic sequence with ground truth");
@@ -185,6 +212,12 @@ int main(int argc, char** argv) {
     bench->add_option("--frames", ba.frames, "Frames")->check(CLI::Range(2, 100000))->capture_default_str();
     bench->add_option("--repeat", repeat, "Runs over the sequence")->check(CLI::Range(1, 1000))->capture_default_str();
 
+    std::string cfg_in;
+    std::vector<std::string> cfg_sets;
+    auto* config = app.add_subcommand("config", "Print the effective tracker configuration (YAML, with units and ranges)");
+    config->add_option("--config", cfg_in, "Start from this YAML file");
+    config->add_option("--set", cfg_sets, "Set one parameter: --set track.rows=32 (repeatable)");
+
     std::string inspect_path;
     auto* inspect = app.add_subcommand("inspect-model", "Load a model and print its features");
     inspect->add_option("model", inspect_path, "Model file")->required();
@@ -200,7 +233,20 @@ int main(int argc, char** argv) {
         }
         to.init_pose = *p;
       }
+      if (auto c = configure(to.params, config_file, sets); !c) {
+        fmt::print(stderr, "v4r track: error: {}\n", c.error().to_string());
+        return 1;
+      }
       return app::cmd_track(to);
+    }
+    if (*config) {
+      pipeline::CycleParams params;
+      if (auto c = configure(params, cfg_in, cfg_sets); !c) {
+        fmt::print(stderr, "v4r config: error: {}\n", c.error().to_string());
+        return 1;
+      }
+      fmt::print("# v4r tracker configuration (v4r track --config FILE)\n{}", pipeline::make_registry(params).to_yaml());
+      return 0;
     }
     if (*render) return cmd_render(ra);
     if (*demo) return cmd_demo(demo_out);

@@ -1,0 +1,50 @@
+// v4r - robust model-based object tracking. MIT licence.
+#include "v4r/pipeline/params.hpp"
+
+namespace v4r::pipeline {
+
+ParamRegistry make_registry(CycleParams& p) {
+  ParamRegistry r;
+  // Line tracking windows (paper 3.1, 3.4).
+  auto& t = p.track;
+  r.add("track.rows", &t.rows, 3, 256, "", "samples along an edge (fixed window height; long edges subsampled)");
+  r.add("track.half_width", &t.half_width, 2, 64, "px", "tracking window half width across the edge");
+  r.add("track.end_margin", &t.end_margin, 0.0, 0.45, "", "fraction of an edge left out at each end");
+  r.add("track.min_gradient", &t.min_gradient, 0.0, 255.0, "grey/px", "weakest edge pixel gradient");
+  r.add("track.max_candidates_per_row", &t.max_candidates_per_row, 1, 16, "", "edge pixel candidates kept per row");
+  r.add("track.ransac_iterations", &t.ransac_iterations, 1, 10000, "", "RANSAC hypotheses per line");
+  r.add("track.inlier_tolerance", &t.inlier_tolerance, 0.05, 10.0, "px", "RANSAC inlier distance");
+  r.add("track.min_inlier_ratio", &t.min_inlier_ratio, 0.05, 1.0, "", "rows with an inlier for a line to count as found");
+  r.add("track.max_angle", &t.max_angle, 0.01, 1.5, "rad", "largest angle of a fitted line to its window");
+  r.add("search.half_width", &p.search_half_width, 2, 128, "px", "window half width for features not found in the last frame");
+  // Pose (paper 5).
+  auto& s = p.solver;
+  r.add("solver.line_sigma", &p.line_sigma_px, 0.01, 20.0, "px", "a-priori noise of a tracked line");
+  r.add("solver.max_iterations", &s.max_iterations, 1, 200, "", "Gauss-Newton iterations per solve");
+  r.add("solver.step_tolerance", &s.step_tolerance, 0.0, 1.0, "m|rad", "convergence: smallest step");
+  r.add("solver.outlier_threshold", &s.outlier_threshold, 1.0, 100.0, "sigma", "largest standardised residual kept");
+  r.add("solver.max_outlier_rounds", &s.max_outlier_rounds, 0, 1000, "", "remove-one-and-solve rounds (0: none)");
+  r.add("solver.robust_init", &s.robust_init, "Cauchy IRLS pass before outlier removal");
+  r.add("solver.cauchy_c", &s.cauchy_c, 0.5, 20.0, "sigma", "Cauchy constant of the robust pass");
+  r.add("solver.adaptive_threshold", &s.adaptive_threshold, "widen the outlier threshold when sigma is too optimistic");
+  r.add("solver.min_sigma0", &s.min_sigma0, 0.0, 10.0, "", "floor of the a-posteriori scale of the covariance");
+  // Visibility.
+  auto& v = p.visibility;
+  r.add("visibility.appear_angle", &v.appear_angle, 0.0, 1.5707963, "rad", "a hidden face appears below this view angle");
+  r.add("visibility.disappear_angle", &v.disappear_angle, 0.0, 1.5707963, "rad", "a visible face disappears above this view angle");
+  r.add("visibility.grazing_angle", &v.grazing_angle, 1.0, 3.0, "rad", "hidden faces below this may show as slivers");
+  r.add("visibility.crease_angle", &v.crease_angle, 0.0, 1.0, "rad", "edges between faces closer than this in normal are dropped");
+  r.add("visibility.samples", &v.samples, 2, 256, "", "points per edge tested for occlusion");
+  r.add("visibility.image_margin", &v.image_margin, 0.0, 100.0, "px", "edge parts nearer the border are cut");
+  r.add("visibility.min_length", &v.min_length_px, 1.0, 1000.0, "px", "shortest visible edge part tracked");
+  // Cycle.
+  r.add("cycle.min_lines", &p.min_lines, 3, 1000, "", "fewer found lines: the pose is not updated");
+  r.add("cycle.degraded_ratio", &p.degraded_ratio, 0.0, 1.0, "", "used/visible below this: status degraded");
+  r.add("cycle.refine_passes", &p.refine_passes, 1, 5, "", "track+solve passes per frame");
+  r.add("cycle.ambiguity_angle", &p.ambiguity_angle, 0.0, 1.0, "rad", "edges closer than this in direction count as parallel");
+  r.add("cycle.ambiguity_margin", &p.ambiguity_margin_px, -100.0, 100.0, "px", "parallel edges nearer than half_width + this are ambiguous");
+  r.add("cycle.ambiguity_min_overlap", &p.ambiguity_min_overlap, 0.0, 1.0, "", "overlap (fraction) for ambiguity");
+  return r;
+}
+
+}  // namespace v4r::pipeline
