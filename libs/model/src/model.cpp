@@ -37,7 +37,8 @@ Index ModelBuilder::add_line(Index a, Index b, Attributes attr) {
   return idx;
 }
 
-Expected<Index> ModelBuilder::add_face(const std::vector<Index>& loop, Attributes attr, double planarity_tol) {
+Expected<Index> ModelBuilder::add_face(const std::vector<Index>& loop, Attributes attr, double planarity_tol,
+                                       FaceEdges edges) {
   if (loop.size() < 3) return make_error(fmt::format("a face needs at least 3 points, got {}", loop.size()));
   for (Index j : loop) {
     if (j >= m_.junctions_.size())
@@ -66,6 +67,7 @@ Expected<Index> ModelBuilder::add_face(const std::vector<Index>& loop, Attribute
   f.attr = std::move(attr);
   m_.faces_.push_back(std::move(f));
   const auto fi = static_cast<Index>(m_.faces_.size() - 1);
+  if (edges == FaceEdges::kSkip) return fi;
   for (std::size_t i = 0; i < loop.size(); ++i) {
     const Index li = add_line(loop[i], loop[(i + 1) % loop.size()]);
     LineEdge& e = m_.lines_[li];
@@ -76,6 +78,18 @@ Expected<Index> ModelBuilder::add_face(const std::vector<Index>& loop, Attribute
     }
   }
   return fi;
+}
+
+Expected<void> ModelBuilder::set_line_faces(Index line, Index face_left, Index face_right) {
+  if (line >= m_.lines_.size())
+    return make_error(fmt::format("line {} does not exist ({} lines)", line, m_.lines_.size()));
+  for (Index f : {face_left, face_right}) {
+    if (f != kNone && f >= m_.faces_.size())
+      return make_error(fmt::format("face {} does not exist ({} faces)", f, m_.faces_.size()));
+  }
+  m_.lines_[line].face_left = face_left;
+  m_.lines_[line].face_right = face_right;
+  return {};
 }
 
 Index ModelBuilder::add_arc(CircleArc arc) {

@@ -96,6 +96,9 @@ class Model {
   double bounding_radius_ = 0.0;
 };
 
+/// \brief Whether ModelBuilder::add_face also adds the face's boundary edges as lines.
+enum class FaceEdges { kAdd, kSkip };
+
 /// \brief Builds a Model feature by feature: junctions, lines, faces (which add their boundary
 /// edges, merged with existing lines), circles and cylinders. `build()` validates and freezes.
 class ModelBuilder {
@@ -107,8 +110,12 @@ class ModelBuilder {
   /// Adds a straight edge between junctions a and b, or returns the existing one between them.
   Index add_line(Index a, Index b, Attributes attr = {});
   /// Adds a face from a loop of junctions (CCW from outside, at least 3, planar within
-  /// `planarity_tol` metres); its boundary edges are added with add_line and linked to the face.
-  Expected<Index> add_face(const std::vector<Index>& loop, Attributes attr = {}, double planarity_tol = 1e-4);
+  /// `planarity_tol` metres). With FaceEdges::kAdd its boundary edges are added with add_line and
+  /// linked to the face; with FaceEdges::kSkip no line is added (link lines with set_line_faces).
+  Expected<Index> add_face(const std::vector<Index>& loop, Attributes attr = {}, double planarity_tol = 1e-4,
+                           FaceEdges edges = FaceEdges::kAdd);
+  /// Sets the faces bounded by an existing line (kNone leaves a side empty).
+  Expected<void> set_line_faces(Index line, Index face_left, Index face_right);
   /// Adds a circle arc (normal and x_axis are normalised, x_axis made orthogonal to normal).
   Index add_arc(CircleArc arc);
   /// Adds a cylinder and its two rim circles.
@@ -116,6 +123,7 @@ class ModelBuilder {
 
   [[nodiscard]] std::size_t junction_count() const { return m_.junctions_.size(); }
   [[nodiscard]] std::size_t line_count() const { return m_.lines_.size(); }
+  [[nodiscard]] std::size_t face_count() const { return m_.faces_.size(); }
 
   /// Validates (indices in range, finite coordinates, non-degenerate edges) and returns the model.
   Expected<Model> build() &&;
