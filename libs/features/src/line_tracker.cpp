@@ -14,6 +14,8 @@ constexpr int kMinInliers = 3;             // a line needs at least this many in
 constexpr std::uint32_t kDefaultSeed = 0x9E3779B9u;  // xorshift state must not be zero
 
 constexpr double kInsideMargin = 0.01;     // pixels: keeps x0 + 1, y0 + 1 of a bilinear sample inside
+constexpr float kMinChromaSum = 30.0f;     // grey levels: mean R + G + B below which rg chromaticity is noise
+constexpr float kMaxDarkScale = 4.0f;      // largest widening of the chroma tolerance on a darkened band
 
 bool finite(const Eigen::Vector2d& p) { return std::isfinite(p.x()) && std::isfinite(p.y()); }
 
@@ -44,6 +46,15 @@ LineTrackerParams sanitize(LineTrackerParams p) {
   if (!(p.min_inlier_ratio >= 0.0)) p.min_inlier_ratio = def.min_inlier_ratio;
   if (!(p.max_angle > 0.0)) p.max_angle = def.max_angle;
   p.max_angle = std::min(p.max_angle, 1.5);
+  p.side_offset = std::clamp(p.side_offset, 1, 64);
+  p.side_width = std::clamp(p.side_width, 1, 32);
+  if (!(p.appearance_k > 0.0)) p.appearance_k = def.appearance_k;
+  if (!(p.appearance_min_sigma >= 0.0f)) p.appearance_min_sigma = def.appearance_min_sigma;
+  if (!(p.chroma_min_sigma >= 0.0f)) p.chroma_min_sigma = def.chroma_min_sigma;
+  if (!(p.shadow_tolerance >= 0.0f)) p.shadow_tolerance = def.shadow_tolerance;
+  if (!(p.learning_rate > 0.0)) p.learning_rate = def.learning_rate;
+  p.learning_rate = std::min(p.learning_rate, 1.0);
+  if (!(p.learn_min_inlier_ratio >= 0.0)) p.learn_min_inlier_ratio = def.learn_min_inlier_ratio;
   return p;
 }
 
@@ -55,7 +66,7 @@ LineTracker::LineTracker(const LineTrackerParams& params) : p_(sanitize(params))
   patch_.assign(rows * static_cast<std::size_t>(cols_), 0.0f);
   grad_.assign(rows * static_cast<std::size_t>(cols_), 0.0f);
   row_valid_.assign(rows, 0);
-  col_inside_.assign(static_cast<std::size_t>(cols_), 0);
+  col_inside_.assign(rows * static_cast<std::size_t>(cols_), 0);
   row_v_.assign(rows, 0.0);
   row_centre_.assign(rows, Eigen::Vector2d::Zero());
   edgels_.assign(rows * static_cast<std::size_t>(p_.max_candidates_per_row), Edgel{});
@@ -127,80 +138,165 @@ bool LineTracker::fit_inliers(int count, LineFit* out) const {
   return std::isfinite(out->s) && std::isfinite(out->u0);
 }
 
-LineMeasurement LineTracker::track(const image::ImageView& img, const Segment2& predicted,
-                                   LineTrackState& state) {
-  LineMeasurement m;
-  last_inliers_.clear();
-  if (img.empty() || !finite(predicted.a) || !finite(predicted.b)) return m;
-  const Eigen::Vector2d ab = predicted.b - predicted.a;
-  const double len = ab.norm();
-  if (!(len >= kMinSegmentLength) || !std::isfinite(len)) return m;
 
-  // 1. Oriented window: rows along the edge, columns across it.
-  const Eigen::Vector2d d = ab / len;
-  const Eigen::Vector2d n(-d.y(), d.x());
-  const int rows = p_.rows, w = p_.half_width, cols = cols_;
-  const double margin = p_.end_margin * len;
-  const double step = (len - 2.0 * margin) / (rows - 1);  // pixels between rows (subsampling)
-  const double mid = 0.5 * (rows - 1);
-  const Eigen::Vector2d start = predicted.a + margin * d;
-  const int k_max = p_.max_candidates_per_row;
-  const int want = state.polarity > 0 ? 1 : (state.polarity < 0 ? -1 : 0);
-  int valid_rows = 0;
-  int pool_size = 0;
-  for (int i = 0; i < rows; ++i) {
-    const Eigen::Vector2d c = start + (i * step) * d;
-    row_centre_[i] = c;
-    row_v_[i] = (i - mid) * step;
-    row_count_[i] = 0;
-    const bool valid = img.contains(c.x(), c.y(), kRowMargin);
-    row_valid_[i] = valid ? 1 : 0;
-    if (!valid) continue;
-    ++valid_rows;
-
-    // Prewitt smoothing along the edge: the mean of the three image lines at -1, 0, +1 pixel along
-    // d through the row centre, whatever the row spacing (rows of a long edge are far apart).
-    // Columns whose samples leave the image are sampled clamped but marked, so that no edgel is
-    // taken from the clamped border extension.
-    float* prow = &patch_[static_cast<std::size_t>(i) * cols];
-    const Eigen::Vector2d first = c - static_cast<double>(w) * n, last = c + static_cast<double>(w) * n;
-    const bool row_inside = img.contains(first.x() - d.x(), first.y() - d.y(), kInsideMargin) &&
-                            img.contains(first.x() + d.x(), first.y() + d.y(), kInsideMargin) &&
-                            img.contains(last.x() - d.x(), last.y() - d.y(), kInsideMargin) &&
-                            img.contains(last.x() + d.x(), last.y() + d.y(), kInsideMargin);
-    if (row_inside) {
-      // Fast path: the four corners inside => every sample inside (the image is convex).
-      for (int j = 0; j < cols; ++j) {
-        const Eigen::Vector2d q = first + static_cast<double>(j) * n;
-        const float acc = sample_inside(img, q.x() - d.x(), q.y() - d.y()) + sample_inside(img, q.x(), q.y()) +
-                          sample_inside(img, q.x() + d.x(), q.y() + d.y());
-        prow[j] = acc * (1.0f / 3.0f);
-        col_inside_[j] = 1;
+bool LineTracker::grey_band(int row, int col, int side, float* grey) const {
+  // Samples at side_offset .. side_offset + side_width - 1 columns from the peak, on `side`. Inside
+  // the window the smoothed patch row is reused; beyond it (an edgel near the window's border)
+  // the image is sampled with the same 3-line smoothing along the edge.
+  const int sgn = side == 0 ? -1 : 1;
+  const float* prow = &patch_[static_cast<std::size_t>(row) * cols_];
+  const unsigned char* inside = &col_inside_[static_cast<std::size_t>(row) * cols_];
+  const Eigen::Vector2d first = row_centre_[row] - static_cast<double>(p_.half_width) * n_;
+  float sum = 0.0f;
+  int n = 0;
+  for (int t = 0; t < p_.side_width; ++t) {
+    const int j = col + sgn * (p_.side_offset + t);
+    if (j >= 0 && j < cols_) {
+      if (inside[j]) {
+        sum += prow[j];
+        ++n;
       }
-    } else {
-      for (int j = 0; j < cols; ++j) {
-        const Eigen::Vector2d q = first + static_cast<double>(j) * n;
-        const double x0 = q.x() - d.x(), y0 = q.y() - d.y(), x2 = q.x() + d.x(), y2 = q.y() + d.y();
-        const float acc = img.sample(x0, y0) + img.sample(q.x(), q.y()) + img.sample(x2, y2);
-        prow[j] = acc * (1.0f / 3.0f);
-        col_inside_[j] = (img.contains(x0, y0) && img.contains(x2, y2)) ? 1 : 0;
+      continue;
+    }
+    const Eigen::Vector2d q = first + static_cast<double>(j) * n_;
+    const Eigen::Vector2d q0 = q - d_, q2 = q + d_;
+    if (!img_.contains(q0.x(), q0.y(), kInsideMargin) || !img_.contains(q2.x(), q2.y(), kInsideMargin)) continue;
+    sum += (sample_inside(img_, q0.x(), q0.y()) + sample_inside(img_, q.x(), q.y()) +
+            sample_inside(img_, q2.x(), q2.y())) *
+           (1.0f / 3.0f);
+    ++n;
+  }
+  if (n == 0) return false;
+  *grey = sum / static_cast<float>(n);
+  return true;
+}
+
+bool LineTracker::chroma_band(int row, int col, int side, float rg[2]) const {
+  if (colour_ == nullptr) return false;
+  const int sgn = side == 0 ? -1 : 1;
+  const Eigen::Vector2d first = row_centre_[row] - static_cast<double>(p_.half_width) * n_;
+  float bgr_sum[3] = {0.0f, 0.0f, 0.0f};
+  int n = 0;
+  for (int t = 0; t < p_.side_width; ++t) {
+    const Eigen::Vector2d q = first + static_cast<double>(col + sgn * (p_.side_offset + t)) * n_;
+    if (!colour_->contains(q.x(), q.y(), kInsideMargin)) continue;
+    float bgr[3];
+    colour_->sample_inside(q.x(), q.y(), bgr);
+    bgr_sum[0] += bgr[0];
+    bgr_sum[1] += bgr[1];
+    bgr_sum[2] += bgr[2];
+    ++n;
+  }
+  const float total = bgr_sum[0] + bgr_sum[1] + bgr_sum[2];
+  if (n == 0 || !(total >= kMinChromaSum * static_cast<float>(n))) return false;
+  rg[0] = bgr_sum[2] / total;  // r = R / (R + G + B)
+  rg[1] = bgr_sum[1] / total;  // g = G / (R + G + B)
+  return true;
+}
+
+bool LineTracker::appearance_ok(int row, int col) const {
+  // Every learned object side must match; a side whose band leaves the image gives no evidence.
+  for (int s = 0; s < 2; ++s) {
+    const SideCheck& c = check_[s];
+    if (!c.active) continue;
+    float grey = 0.0f;
+    const bool has_grey = grey_band(row, col, s, &grey);
+    if (has_grey && std::abs(grey - c.mean[0]) > c.tol[0]) return false;
+    if (!c.chroma) continue;
+    float rg[2];
+    if (!chroma_band(row, col, s, rg)) continue;
+    // Chromaticity noise grows as the light dims: widen its tolerance on a darkened band.
+    float scale = 1.0f;
+    if (has_grey && grey < c.mean[0]) scale = std::min(kMaxDarkScale, c.mean[0] / std::max(grey, 1.0f));
+    if (std::abs(rg[0] - c.mean[1]) > c.tol[1] * scale || std::abs(rg[1] - c.mean[2]) > c.tol[2] * scale)
+      return false;
+  }
+  return true;
+}
+
+void LineTracker::learn_sides(LineTrackState& state, const LineMeasurement& m, bool reset) const {
+  const int count = m.inliers;
+  for (int s = 0; s < 2; ++s) {
+    SideAppearance& a = state.side[s];
+    if (!a.is_object) continue;
+    // Band means of the inliers: frame mean and variance per channel.
+    double sum[3] = {0.0, 0.0, 0.0}, sq[3] = {0.0, 0.0, 0.0};
+    int n_grey = 0, n_chroma = 0;
+    for (int k = 0; k < count; ++k) {
+      const Edgel& e = edgels_[inlier_idx_[k]];
+      float grey = 0.0f;
+      if (!grey_band(e.row, e.col, s, &grey)) continue;
+      sum[0] += grey;
+      sq[0] += static_cast<double>(grey) * grey;
+      ++n_grey;
+      float rg[2];
+      if (!chroma_band(e.row, e.col, s, rg)) continue;
+      for (int c = 0; c < 2; ++c) {
+        sum[c + 1] += rg[c];
+        sq[c + 1] += static_cast<double>(rg[c]) * rg[c];
+      }
+      ++n_chroma;
+    }
+    if (n_grey < kMinInliers) continue;
+    const int channels = n_chroma >= kMinInliers ? 3 : 1;
+    float mean[3] = {0.0f, 0.0f, 0.0f}, var[3] = {0.0f, 0.0f, 0.0f};
+    for (int c = 0; c < channels; ++c) {
+      const int n = c == 0 ? n_grey : n_chroma;
+      const double mu = sum[c] / n;
+      mean[c] = static_cast<float>(mu);
+      var[c] = static_cast<float>(std::max(0.0, sq[c] / n - mu * mu));
+    }
+    if (reset || !a.learned) {
+      // Learned from scratch only from a convincing fit.
+      if (m.inlier_ratio < p_.learn_min_inlier_ratio) continue;
+      a.learned = true;
+      a.channels = channels;
+      for (int c = 0; c < 3; ++c) {
+        a.mean[c] = mean[c];
+        a.var[c] = var[c];
+      }
+      continue;
+    }
+    // Running mean and variance: the mixture of the old estimate (weight 1 - r) and this frame's
+    // (weight r), var = (1 - r) var_old + r var_frame + r (1 - r) (mean_frame - mean_old)^2.
+    // A frame without colour updates the grey level and keeps the chromaticity; the first frame
+    // with colour of a grey-learned side adds it.
+    const float r = static_cast<float>(p_.learning_rate);
+    const int blend = std::min(channels, a.channels == 3 ? 3 : 1);
+    for (int c = 0; c < blend; ++c) {
+      const float delta = mean[c] - a.mean[c];
+      a.mean[c] += r * delta;
+      a.var[c] = (1.0f - r) * a.var[c] + r * var[c] + r * (1.0f - r) * delta * delta;
+    }
+    if (channels == 3 && a.channels != 3) {
+      a.channels = 3;
+      for (int c = 1; c < 3; ++c) {
+        a.mean[c] = mean[c];
+        a.var[c] = var[c];
       }
     }
+  }
+}
 
-    // 2. Gradient across: central difference of the smoothed row (grey levels per pixel).
-    float* g = &grad_[static_cast<std::size_t>(i) * cols];
-    g[0] = 0.0f;
-    g[cols - 1] = 0.0f;
-    for (int j = 1; j < cols - 1; ++j) g[j] = 0.5f * (prow[j + 1] - prow[j - 1]);
-
-    // 3. Edgels: local maxima of sign * g, the k_max strongest kept. Columns 2..cols-3 only, so
-    // that a peak is a verified maximum; its support (columns j-2..j+2) must be inside the image.
+int LineTracker::extract_edgels(int want, bool cues, int* rejected) {
+  // Edgels: local maxima of sign * g, the k_max strongest kept. Columns 2..cols-3 only, so that a
+  // peak is a verified maximum; its support (columns j-2..j+2) must be inside the image. With
+  // cues, a candidate strong enough to enter the row's slots must also pass the appearance check
+  // (checked before it takes a slot, so that background edges cannot crowd out the object's).
+  const int cols = cols_, w = p_.half_width, k_max = p_.max_candidates_per_row;
+  int pool_size = 0;
+  int n_rejected = 0;
+  for (int i = 0; i < p_.rows; ++i) {
+    row_count_[i] = 0;
+    if (!row_valid_[i]) continue;
+    const float* g = &grad_[static_cast<std::size_t>(i) * cols];
+    const unsigned char* inside = &col_inside_[static_cast<std::size_t>(i) * cols];
     Edgel* slots = &edgels_[static_cast<std::size_t>(i) * k_max];
     int count = 0;
     int inside_run = 0;  // consecutive inside columns ending at j + 2
-    for (int j = 0; j < 4 && j < cols; ++j) inside_run = col_inside_[j] ? inside_run + 1 : 0;
+    for (int j = 0; j < 4 && j < cols; ++j) inside_run = inside[j] ? inside_run + 1 : 0;
     for (int j = 2; j < cols - 2; ++j) {
-      inside_run = col_inside_[j + 2] ? inside_run + 1 : 0;
+      inside_run = inside[j + 2] ? inside_run + 1 : 0;
       if (inside_run < 5) continue;
       const float gj = g[j];
       const int sign = gj > 0.0f ? 1 : -1;
@@ -209,20 +305,25 @@ LineMeasurement LineTracker::track(const image::ImageView& img, const Segment2& 
       if (want != 0 && sign != want) continue;
       const float left = sign * g[j - 1], right = sign * g[j + 1];
       if (!(sg >= left && sg > right)) continue;
-      // Sub-pixel peak: vertex of the parabola through the three values.
-      const float denom = left - 2.0f * sg + right;
-      float delta = denom < -1e-6f ? 0.5f * (left - right) / denom : 0.0f;
-      delta = std::clamp(delta, -0.5f, 0.5f);
-      const Edgel e{static_cast<float>(j - w) + delta, static_cast<float>(row_v_[i]), sg, sign, i};
       // Keep the k_max strongest, sorted by decreasing strength.
       int pos;
       if (count < k_max) {
-        pos = count++;
+        pos = count;
       } else if (sg > slots[k_max - 1].strength) {
         pos = k_max - 1;
       } else {
         continue;
       }
+      if (cues && !appearance_ok(i, j)) {
+        ++n_rejected;
+        continue;
+      }
+      if (count < k_max) ++count;
+      // Sub-pixel peak: vertex of the parabola through the three values.
+      const float denom = left - 2.0f * sg + right;
+      float delta = denom < -1e-6f ? 0.5f * (left - right) / denom : 0.0f;
+      delta = std::clamp(delta, -0.5f, 0.5f);
+      const Edgel e{static_cast<float>(j - w) + delta, static_cast<float>(row_v_[i]), sg, sign, i, j};
       while (pos > 0 && slots[pos - 1].strength < sg) {
         slots[pos] = slots[pos - 1];
         --pos;
@@ -236,8 +337,13 @@ LineMeasurement LineTracker::track(const image::ImageView& img, const Segment2& 
       ++pool_size;
     }
   }
-  if (valid_rows < kMinInliers) return m;
-  if (pool_size < kMinInliers) return m;
+  if (rejected != nullptr) *rejected = n_rejected;
+  return pool_size;
+}
+
+void LineTracker::fit_pool(int pool_size, int valid_rows, LineMeasurement& m) {
+  if (pool_size < kMinInliers) return;
+  const int rows = p_.rows;
 
   // 4. RANSAC over pairs of edgels in different rows with the same sign; inliers must have that
   // sign too (an edge has one polarity: clutter edgels of the other sign cannot prop up a wrong
@@ -291,15 +397,15 @@ LineMeasurement LineTracker::track(const image::ImageView& img, const Segment2& 
       consider(ia, ib);
     }
   }
-  if (best_count < 2) return m;
+  if (best_count < 2) return;
 
   // Refinement: least squares on the inliers, inliers recomputed once, final least squares.
   int count = score_line(best_line, best_sign, nullptr);
   LineFit fit;
-  if (!fit_inliers(count, &fit)) return m;
+  if (!fit_inliers(count, &fit)) return;
   count = score_line(fit, best_sign, nullptr);
   LineFit final_fit;
-  if (!fit_inliers(count, &final_fit)) return m;
+  if (!fit_inliers(count, &final_fit)) return;
 
   // 5. Measurement in image coordinates.
   const double norm = std::sqrt(1.0 + final_fit.s * final_fit.s);
@@ -308,20 +414,146 @@ LineMeasurement LineTracker::track(const image::ImageView& img, const Segment2& 
     const Edgel& e = edgels_[inlier_idx_[k]];
     const double dist = (e.u - final_fit.u0 - final_fit.s * e.v) / norm;
     sq += dist * dist;
-    last_inliers_.push_back(row_centre_[e.row] + static_cast<double>(e.u) * n);
+    last_inliers_.push_back(row_centre_[e.row] + static_cast<double>(e.u) * n_);
   }
   const double u_first = final_fit.u0 + final_fit.s * row_v_[0];
   const double u_last = final_fit.u0 + final_fit.s * row_v_[rows - 1];
-  m.line.a = row_centre_[0] + u_first * n;
-  m.line.b = row_centre_[rows - 1] + u_last * n;
+  m.line.a = row_centre_[0] + u_first * n_;
+  m.line.b = row_centre_[rows - 1] + u_last * n_;
   m.offset_px = final_fit.u0;  // rows are centred on v = 0: mean u over the window
   m.inliers = count;
   m.inlier_ratio = static_cast<double>(count) / valid_rows;
   m.rms_px = std::sqrt(sq / count);
   m.polarity = best_sign;  // all inliers share it
-  m.found = count >= kMinInliers && m.inlier_ratio >= p_.min_inlier_ratio &&
-            std::abs(final_fit.s) <= tan_max;
-  if (m.found) state.polarity = m.polarity;
+  m.found = count >= kMinInliers && m.inlier_ratio >= p_.min_inlier_ratio && std::abs(final_fit.s) <= tan_max;
+}
+
+LineMeasurement LineTracker::track(const image::ImageView& img, const Segment2& predicted, LineTrackState& state,
+                                   const image::ColourView* colour) {
+  LineMeasurement m;
+  last_inliers_.clear();
+  if (img.empty() || !finite(predicted.a) || !finite(predicted.b)) return m;
+  const Eigen::Vector2d ab = predicted.b - predicted.a;
+  const double len = ab.norm();
+  if (!(len >= kMinSegmentLength) || !std::isfinite(len)) return m;
+
+  // 1. Oriented window: rows along the edge, columns across it.
+  const Eigen::Vector2d d = ab / len;
+  const Eigen::Vector2d n(-d.y(), d.x());
+  img_ = img;
+  colour_ = (colour != nullptr && !colour->empty() && colour->width == img.width &&
+             colour->height == img.height && colour->stride >= image::ColourView::kChannels * colour->width)
+                ? colour
+                : nullptr;
+  d_ = d;
+  n_ = n;
+  const int rows = p_.rows, w = p_.half_width, cols = cols_;
+  const double margin = p_.end_margin * len;
+  const double step = (len - 2.0 * margin) / (rows - 1);  // pixels between rows (subsampling)
+  const double mid = 0.5 * (rows - 1);
+  const Eigen::Vector2d start = predicted.a + margin * d;
+  const int want = state.polarity > 0 ? 1 : (state.polarity < 0 ? -1 : 0);
+  int valid_rows = 0;
+  for (int i = 0; i < rows; ++i) {
+    const Eigen::Vector2d c = start + (i * step) * d;
+    row_centre_[i] = c;
+    row_v_[i] = (i - mid) * step;
+    row_count_[i] = 0;
+    const bool valid = img.contains(c.x(), c.y(), kRowMargin);
+    row_valid_[i] = valid ? 1 : 0;
+    if (!valid) continue;
+    ++valid_rows;
+
+    // Prewitt smoothing along the edge: the mean of the three image lines at -1, 0, +1 pixel along
+    // d through the row centre, whatever the row spacing (rows of a long edge are far apart).
+    // Columns whose samples leave the image are sampled clamped but marked, so that no edgel is
+    // taken from the clamped border extension.
+    float* prow = &patch_[static_cast<std::size_t>(i) * cols];
+    unsigned char* inside = &col_inside_[static_cast<std::size_t>(i) * cols];
+    const Eigen::Vector2d first = c - static_cast<double>(w) * n, last = c + static_cast<double>(w) * n;
+    const bool row_inside = img.contains(first.x() - d.x(), first.y() - d.y(), kInsideMargin) &&
+                            img.contains(first.x() + d.x(), first.y() + d.y(), kInsideMargin) &&
+                            img.contains(last.x() - d.x(), last.y() - d.y(), kInsideMargin) &&
+                            img.contains(last.x() + d.x(), last.y() + d.y(), kInsideMargin);
+    if (row_inside) {
+      // Fast path: the four corners inside => every sample inside (the image is convex).
+      for (int j = 0; j < cols; ++j) {
+        const Eigen::Vector2d q = first + static_cast<double>(j) * n;
+        const float acc = sample_inside(img, q.x() - d.x(), q.y() - d.y()) + sample_inside(img, q.x(), q.y()) +
+                          sample_inside(img, q.x() + d.x(), q.y() + d.y());
+        prow[j] = acc * (1.0f / 3.0f);
+        inside[j] = 1;
+      }
+    } else {
+      for (int j = 0; j < cols; ++j) {
+        const Eigen::Vector2d q = first + static_cast<double>(j) * n;
+        const double x0 = q.x() - d.x(), y0 = q.y() - d.y(), x2 = q.x() + d.x(), y2 = q.y() + d.y();
+        const float acc = img.sample(x0, y0) + img.sample(q.x(), q.y()) + img.sample(x2, y2);
+        prow[j] = acc * (1.0f / 3.0f);
+        inside[j] = (img.contains(x0, y0) && img.contains(x2, y2)) ? 1 : 0;
+      }
+    }
+
+    // 2. Gradient across: central difference of the smoothed row (grey levels per pixel).
+    float* g = &grad_[static_cast<std::size_t>(i) * cols];
+    g[0] = 0.0f;
+    g[cols - 1] = 0.0f;
+    for (int j = 1; j < cols - 1; ++j) g[j] = 0.5f * (prow[j + 1] - prow[j - 1]);
+  }
+  if (valid_rows < kMinInliers) return m;
+
+  // Appearance checks of the learned object sides (paper 4.1).
+  bool cues = false;
+  for (int s = 0; s < 2; ++s) {
+    SideCheck& c = check_[s];
+    const SideAppearance& a = state.side[s];
+    c = SideCheck{};
+    if (!p_.use_cues || !a.is_object || !a.learned) continue;
+    const int channels = a.channels == 3 ? 3 : 1;
+    bool sane = true;
+    for (int ch = 0; ch < channels; ++ch) sane = sane && std::isfinite(a.mean[ch]) && std::isfinite(a.var[ch]);
+    if (!sane) continue;
+    const float k = static_cast<float>(p_.appearance_k);
+    c.active = true;
+    c.chroma = colour_ != nullptr && channels == 3;
+    c.mean[0] = a.mean[0];
+    c.tol[0] = k * std::max(std::sqrt(std::max(a.var[0], 0.0f)), p_.appearance_min_sigma);
+    if (c.chroma) {
+      // Chromaticity carries the identity of the face; intensity may drop in a shadow.
+      c.tol[0] = std::max(c.tol[0], p_.shadow_tolerance * a.mean[0]);
+      for (int ch = 1; ch < 3; ++ch) {
+        c.mean[ch] = a.mean[ch];
+        c.tol[ch] = k * std::max(std::sqrt(std::max(a.var[ch], 0.0f)), p_.chroma_min_sigma);
+      }
+    }
+    cues = true;
+  }
+
+  // 3-5. Edgels, RANSAC, measurement. With cues, the candidates passing the check must still be
+  // able to make a found edge; else (the light changed abruptly, the face is shadowed, ...) the
+  // edge is searched again without the check, and the result says so.
+  bool fallback = false;
+  if (cues) {
+    int rejected = 0;
+    const int pool_size = extract_edgels(want, true, &rejected);
+    m.cue_rejected = rejected;
+    int rows_with = 0;
+    for (int i = 0; i < rows; ++i) rows_with += row_count_[i] > 0 ? 1 : 0;
+    const int need = std::max(kMinInliers, static_cast<int>(std::ceil(p_.min_inlier_ratio * valid_rows)));
+    if (rows_with >= need) fit_pool(pool_size, valid_rows, m);
+    if (!m.found) {
+      fallback = true;
+      m = LineMeasurement{};
+      m.cue_rejected = rejected;
+      m.cue_fallback = true;
+      last_inliers_.clear();
+    }
+  }
+  if (!cues || fallback) fit_pool(extract_edgels(want, false, nullptr), valid_rows, m);
+  if (!m.found) return m;
+  state.polarity = m.polarity;
+  // The appearance of the object sides is learned from the inliers; after a fallback, from scratch.
+  if (p_.use_cues) learn_sides(state, m, fallback);
   return m;
 }
 

@@ -3,6 +3,8 @@
 // sub-pixel ground truth, under noise, clutter, occlusion and bad predictions.
 #include "v4r/features/line_tracker.hpp"
 
+#include "synthetic_images.hpp"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -36,122 +38,7 @@ void operator delete(void* p, std::size_t) noexcept { std::free(p); }
 namespace v4r::features {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-
-/// \brief Float image painted with anti-aliased shapes (8x8 supersampled coverage), then
-/// quantized to 8 bits with Gaussian noise.
-class Canvas {
- public:
-  Canvas(int width, int height, float fill)
-      : w_(width), h_(height), px_(static_cast<std::size_t>(width) * height, fill) {}
-
-  /// Paints `value` where the signed distance `sdf(x, y)` (pixels, negative inside, 1-Lipschitz)
-  /// is negative, blending each pixel by its coverage.
-  template <typename Sdf>
-  void paint(const Sdf& sdf, float value) {
-    constexpr int kSub = 8;
-    for (int y = 0; y < h_; ++y) {
-      for (int x = 0; x < w_; ++x) {
-        const double d0 = sdf(static_cast<double>(x), static_cast<double>(y));
-        double cover;
-        if (d0 <= -0.75) {
-          cover = 1.0;
-        } else if (d0 >= 0.75) {
-          continue;
-        } else {
-          int in = 0;
-          for (int sy = 0; sy < kSub; ++sy)
-            for (int sx = 0; sx < kSub; ++sx)
-              if (sdf(x + (sx + 0.5) / kSub - 0.5, y + (sy + 0.5) / kSub - 0.5) < 0.0) ++in;
-          cover = static_cast<double>(in) / (kSub * kSub);
-        }
-        float& p = px_[static_cast<std::size_t>(y) * w_ + x];
-        p = static_cast<float>(p * (1.0 - cover) + value * cover);
-      }
-    }
-  }
-
-  /// Half-plane of points x with (x - p0) . normal > 0.
-  void half_plane(const Eigen::Vector2d& p0, const Eigen::Vector2d& normal, float value) {
-    const Eigen::Vector2d nn = normal.normalized();
-    paint([&](double x, double y) { return -((x - p0.x()) * nn.x() + (y - p0.y()) * nn.y()); }, value);
-  }
-  void disc(const Eigen::Vector2d& c, double r, float value) {
-    paint([&](double x, double y) { return std::hypot(x - c.x(), y - c.y()) - r; }, value);
-  }
-  /// Thick segment p-q of radius r (a short bright or dark line).
-  void capsule(const Eigen::Vector2d& p, const Eigen::Vector2d& q, double r, float value) {
-    const Eigen::Vector2d pq = q - p;
-    const double l2 = pq.squaredNorm();
-    paint(
-        [&](double x, double y) {
-          const Eigen::Vector2d xp(x - p.x(), y - p.y());
-          const double t = std::clamp(xp.dot(pq) / l2, 0.0, 1.0);
-          return (xp - t * pq).norm() - r;
-        },
-        value);
-  }
-
-  /// 8-bit image with additive Gaussian noise (fixed seed).
-  std::vector<std::uint8_t> quantize(double sigma, std::uint32_t seed) const {
-    std::mt19937 rng(seed);
-    std::normal_distribution<double> noise(0.0, sigma);
-    std::vector<std::uint8_t> out(px_.size());
-    for (std::size_t k = 0; k < px_.size(); ++k) {
-      const double v = px_[k] + (sigma > 0.0 ? noise(rng) : 0.0);
-      out[k] = static_cast<std::uint8_t>(std::clamp(std::lround(v), 0L, 255L));
-    }
-    return out;
-  }
-
-  [[nodiscard]] int width() const { return w_; }
-  [[nodiscard]] int height() const { return h_; }
-
- private:
-  int w_, h_;
-  std::vector<float> px_;
-};
-
-image::ImageView view_of(const std::vector<std::uint8_t>& buf, int w, int h) {
-  image::ImageView v;
-  v.data = buf.data();
-  v.width = w;
-  v.height = h;
-  v.stride = w;
-  return v;
-}
-
-/// \brief Ground-truth infinite line through p with unit direction t.
-struct TrueLine {
-  Eigen::Vector2d p;
-  Eigen::Vector2d t;
-  [[nodiscard]] Eigen::Vector2d normal() const { return {-t.y(), t.x()}; }
-  [[nodiscard]] double distance(const Eigen::Vector2d& x) const { return std::abs((x - p).dot(normal())); }
-};
-
-Eigen::Vector2d dir(double angle) { return {std::cos(angle), std::sin(angle)}; }
-
-Segment2 segment(const Eigen::Vector2d& centre, const Eigen::Vector2d& t, double length) {
-  return {centre - 0.5 * length * t, centre + 0.5 * length * t};
-}
-
-/// Step edge along `line`: `dark` on the -normal side, `bright` on the +normal side.
-Canvas step_edge(int w, int h, const TrueLine& line, float dark, float bright) {
-  Canvas c(w, h, dark);
-  c.half_plane(line.p, line.normal(), bright);
-  return c;
-}
-
-struct ErrorStats {
-  double sum = 0.0, max = 0.0;
-  int n = 0;
-  void add(double e) {
-    sum += e;
-    max = std::max(max, e);
-    ++n;
-  }
-  [[nodiscard]] double mean() const { return n > 0 ? sum / n : 0.0; }
-};
+using namespace test_images;  // NOLINT: Canvas, TrueLine, view_of, ... of synthetic_images.hpp
 
 // ---------------------------------------------------------------------------------------------
 
@@ -572,6 +459,56 @@ TEST(LineTracker, DeterministicAndAllocationFree) {
   EXPECT_EQ(m1.rms_px, m2.rms_px);
   EXPECT_LT(truth.distance(m1.line.a), 0.3);
   EXPECT_LT(truth.distance(m1.line.b), 0.3);
+}
+
+TEST(LineTracker, CuesWithColourAreDeterministicAndAllocationFree) {
+  // Colour cues on both sides (an interior edge), the fallback path and a colour view of the
+  // wrong size: no heap allocation in track(), identical results for identical inputs.
+  constexpr int kW = 320, kH = 240;
+  const TrueLine truth{{160.4, 120.3}, dir(0.6)};
+  Canvas c(kW, kH, Bgr{70.f, 165.f, 95.f});
+  c.half_plane(truth.p, truth.normal(), Bgr{160.f, 80.f, 60.f});
+  c.half_plane(truth.p + 6.0 * truth.normal(), truth.normal(), Bgr{140.f, 70.f, 50.f});  // weak clutter
+  const ColourFrame frame(c, 5.0, 31);
+  Canvas dark_canvas(kW, kH, Bgr{35.f, 80.f, 45.f});  // the light halves: every cue fails
+  dark_canvas.half_plane(truth.p, truth.normal(), Bgr{80.f, 40.f, 30.f});
+  const ColourFrame dark(dark_canvas, 5.0, 32);
+  const image::ColourView colour = frame.colour(), dark_colour = dark.colour();
+  image::ColourView wrong = colour;
+  wrong.height -= 2;
+  const Segment2 pred = segment(truth.p + 1.2 * truth.normal(), dir(0.63), 150.0);
+  LineTrackerParams params;
+  params.max_candidates_per_row = 4;
+  LineTracker tracker(params);
+  LineTrackState s1;
+  s1.side[0].is_object = true;
+  s1.side[1].is_object = true;
+  ASSERT_TRUE(tracker.track(frame.grey_view(), pred, s1, &colour).found);  // learns both sides
+  ASSERT_TRUE(s1.side[0].learned && s1.side[1].learned);
+  ASSERT_EQ(s1.side[0].channels, 3);
+  LineTrackState s2 = s1, s3 = s1;
+
+  const long before = g_allocations.load();
+  const LineMeasurement m1 = tracker.track(frame.grey_view(), pred, s1, &colour);
+  const LineMeasurement m2 = tracker.track(frame.grey_view(), pred, s2, &colour);
+  const LineMeasurement fb = tracker.track(dark.grey_view(), pred, s3, &dark_colour);
+  const LineMeasurement w = tracker.track(frame.grey_view(), pred, s3, &wrong);
+  const LineMeasurement miss = tracker.track(frame.grey_view(), segment({30.0, 30.0}, {1.0, 0.0}, 40.0), s3, &colour);
+  const long after = g_allocations.load();
+  EXPECT_EQ(after - before, 0) << "track() allocated";
+
+  ASSERT_TRUE(m1.found);
+  EXPECT_FALSE(m1.cue_fallback);
+  EXPECT_EQ(m1.line.a, m2.line.a);
+  EXPECT_EQ(m1.line.b, m2.line.b);
+  EXPECT_EQ(s1.side[0].mean[1], s2.side[0].mean[1]);
+  EXPECT_EQ(s1.side[1].var[2], s2.side[1].var[2]);
+  EXPECT_LT(truth.error(m1.line), 0.3);
+  ASSERT_TRUE(fb.found);
+  EXPECT_TRUE(fb.cue_fallback);
+  EXPECT_LT(truth.error(fb.line), 0.3);
+  EXPECT_TRUE(w.found);
+  EXPECT_FALSE(miss.found);
 }
 
 }  // namespace

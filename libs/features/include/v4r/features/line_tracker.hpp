@@ -6,6 +6,7 @@
 
 #include <Eigen/Core>
 
+#include "v4r/image/colour_view.hpp"
 #include "v4r/image/image_view.hpp"
 
 namespace v4r::features {
@@ -23,6 +24,37 @@ struct LineTrackerParams {
   double min_inlier_ratio = 0.4;  ///< fraction of rows that must hold an inlier for the edge to count as found
   double max_angle = 0.35;     ///< radians: largest angle between the fitted line and the window axis
   std::uint32_t seed = 1;      ///< RANSAC random seed (deterministic)
+
+  // Cue integration (paper 4.1, EPIC): an edge pixel of the object has the adjacent face's
+  // appearance on its object side(s). Only sides marked LineTrackState::side[k].is_object are
+  // checked and learned, so with no side marked the tracker behaves as without cues.
+  bool use_cues = true;         ///< check candidates against the learned appearance of object sides
+  int side_offset = 2;          ///< pixels from an edgel's peak column to the first side sample
+  int side_width = 3;           ///< pixels sampled on each side of an edgel (across the edge)
+  double appearance_k = 3.0;    ///< tolerance in standard deviations of the learned appearance
+  float appearance_min_sigma = 6.0f;   ///< grey levels: floor of the intensity standard deviation
+  float chroma_min_sigma = 0.02f;      ///< floor of the rg-chromaticity standard deviation (unitless)
+  /// Colour only: intensity may also differ from the learned mean by this fraction of it (a
+  /// shadow or a light change scales intensity but keeps chromaticity, which is checked strictly).
+  float shadow_tolerance = 0.5f;
+  double learning_rate = 0.3;   ///< weight of the current frame in the running mean / variance
+  /// The appearance is learned from scratch (first frame, or after a cue fallback) only from a fit
+  /// with at least this inlier ratio.
+  double learn_min_inlier_ratio = 0.7;
+};
+
+/// \brief Appearance of one side of a tracked edge (paper 4.1): intensity and, on colour images,
+/// chromaticity of a band of pixels beside each edge pixel, learned while tracking.
+///
+/// Channel 0 is the grey level (0..255); on colour images channels 1 and 2 are the normalised
+/// chromaticities r = R / (R + G + B) and g = G / (R + G + B) (0..1), which a shadow leaves unchanged.
+/// A colour-learned side tracked in a grey-only frame updates channel 0 and keeps 1 and 2.
+struct SideAppearance {
+  bool is_object = false;  ///< set by the caller: the object's surface lies on this side
+  bool learned = false;    ///< mean / var hold a learned appearance
+  float mean[3]{};         ///< mean of the per-edgel band means, per channel
+  float var[3]{};          ///< variance of the per-edgel band means, per channel (units squared)
+  int channels = 1;        ///< 1 = grey level only, 3 = grey level + rg chromaticity
 };
 
 /// \brief A 2-D segment in pixel coordinates.
@@ -44,11 +76,22 @@ struct LineMeasurement {
   int inliers = 0;            ///< edge pixels on the fitted line
   double rms_px = 0.0;        ///< RMS distance of the inliers from the fitted line (pixels)
   int polarity = 0;           ///< sign of the gradient across the edge (left->right in window), +1/-1
+  /// True when the candidates passing the appearance check could not make a found edge (e.g.
+  /// after an abrupt change of light) and the edge was searched again without the check; the
+  /// fields above describe that second search. A found fallback is less trustworthy: it may be a
+  /// background edge when the object edge is occluded.
+  bool cue_fallback = false;
+  int cue_rejected = 0;       ///< candidate edge pixels discarded by the appearance check
 };
 
 /// \brief Per-feature state the tracker keeps between frames (the window follows the feature).
 struct LineTrackState {
   int polarity = 0;  ///< 0 = unknown; else the sign of the edge's gradient, preferred in later frames
+  /// Appearance of the two sides of the edge: [0] = the -normal side (window columns < 0), [1] =
+  /// the +normal side, the normal being the prediction's direction a->b turned by +90 degrees
+  /// (n = (-d.y, d.x)). The caller marks is_object (both for an edge between two visible faces);
+  /// the tracker learns mean / var.
+  SideAppearance side[2];
 };
 
 /// \brief Finds a straight edge near a predicted segment.
@@ -57,14 +100,27 @@ struct LineTrackState {
 /// columns across it) so the edge is vertical; a 1-D Prewitt mask gives the gradient across;
 /// each row keeps its strongest local maxima as edge pixels (sub-pixel by parabola); RANSAC fits
 /// the line. Buffers are allocated once in the constructor: track() allocates nothing.
+///
+/// Cues (paper 4.1): a candidate edge pixel is kept only if the band of pixels on each learned
+/// object side (side_offset .. side_offset + side_width - 1 pixels across, same row) matches the
+/// learned appearance of that side: grey level within k * max(sigma, appearance_min_sigma); with
+/// a colour image, rg chromaticity within k * max(sigma, chroma_min_sigma) and the grey level with
+/// the looser shadow_tolerance as well. Strong background edges are thus discarded instead of
+/// fitted. After a fit the object sides' appearance is updated from the inliers.
 class LineTracker {
  public:
   explicit LineTracker(const LineTrackerParams& params = {});
 
-  /// Track an edge near `predicted` (pixels). `state` carries polarity between frames and is
-  /// updated on success. Never throws; a window that leaves the image is sampled clamped and
-  /// its rows outside the image are ignored.
-  LineMeasurement track(const image::ImageView& img, const Segment2& predicted, LineTrackState& state);
+  /// Track an edge near `predicted` (pixels) in the grey image `grey`. `state` carries polarity
+  /// and side appearance between frames and is updated on success. `colour` (optional, same
+  /// size as `grey`, of which `grey` is the grey conversion) adds chromaticity to the cues; a
+  /// colour view of another size is ignored. After a found fallback (cue_fallback) the object
+  /// sides are relearned from scratch if inlier_ratio >= learn_min_inlier_ratio; a caller that
+  /// then rejects the measurement (e.g. as a pose outlier) may clear side[k].learned. Never
+  /// throws; a window that leaves the image is sampled clamped and its rows outside the image are
+  /// ignored.
+  LineMeasurement track(const image::ImageView& grey, const Segment2& predicted, LineTrackState& state,
+                        const image::ColourView* colour = nullptr);
 
   [[nodiscard]] const LineTrackerParams& params() const { return p_; }
   /// Edge pixels of the last call (pixels), for overlays: inliers of the fit.
@@ -77,10 +133,31 @@ class LineTracker {
     float strength;  // |gradient| at the edgel (grey levels per pixel)
     int sign;        // +1 / -1: sign of the gradient along the normal
     int row;         // window row index
+    int col;         // window column of the gradient peak (0 .. 2w)
+  };
+  // Appearance check of one side, prepared once per track() from the learned state.
+  struct SideCheck {
+    bool active = false;
+    bool chroma = false;       // compare chromaticity (colour image and a colour-learned side)
+    float mean[3]{};
+    float tol[3]{};            // tolerances of the three channels (chroma: before darkness scaling)
   };
   struct LineFit { double u0 = 0.0, s = 0.0; };  // u = u0 + s * v (window coordinates, pixels)
 
   std::uint32_t next_random();
+  // Step 3: edgels of every valid row from grad_; with `cues`, candidates failing the appearance
+  // check are discarded. Fills edgels_, row_count_, pool_, pool_cum_; returns the pool size.
+  int extract_edgels(int want, bool cues, int* rejected);
+  // Steps 4-5: RANSAC and refinement over the pool; fills m (found, line, ...) and last_inliers_;
+  // leaves the final inliers in inlier_idx_[0 .. m.inliers).
+  void fit_pool(int pool_size, int valid_rows, LineMeasurement& m);
+  // Mean grey level of the side band of the edgel at (row, col); false when no sample is inside.
+  bool grey_band(int row, int col, int side, float* grey) const;
+  // Mean rg chromaticity of the side band (colour image only); false when outside or too dark.
+  bool chroma_band(int row, int col, int side, float rg[2]) const;
+  bool appearance_ok(int row, int col) const;
+  // Updates the appearance of the object sides from the inliers of `m` (in inlier_idx_).
+  void learn_sides(LineTrackState& state, const LineMeasurement& m, bool reset) const;
   int score_line(const LineFit& line, int sign, float* strength_sum);  // fills inlier_idx_, returns count
   bool fit_inliers(int count, LineFit* out) const;
 
@@ -99,6 +176,11 @@ class LineTracker {
   std::vector<int> inlier_idx_;  // rows: edgel index of each inlier (at most one per row)
   std::vector<Eigen::Vector2d> last_inliers_;
   std::uint32_t rng_ = 1;
+  // Context of the current track() call (set at its start; no ownership).
+  image::ImageView img_;
+  const image::ColourView* colour_ = nullptr;
+  Eigen::Vector2d d_ = Eigen::Vector2d::Zero(), n_ = Eigen::Vector2d::Zero();  // window axis, normal
+  SideCheck check_[2];
 };
 
 }  // namespace v4r::features
