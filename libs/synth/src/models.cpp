@@ -1,7 +1,7 @@
 // v4r - robust model-based object tracking. MIT licence.
 //
-// Built-in test objects and camera. The model texts are also stored as data/box.cao and
-// data/ship_mockup.cao (a unit test checks that the copies are identical).
+// Built-in test objects and camera. The model texts are also stored as data/box.cao,
+// data/ship_mockup.cao and data/flange.cao (a unit test checks that the copies are identical).
 #include <cmath>
 
 #include <Eigen/Geometry>
@@ -106,6 +106,50 @@ std::string ship_mockup_cao() {
 4 19 16 20 23   # transverse wall left  (x = 0.06)
 # 3D cylinders
 0
+# 3D circles
+0
+)CAO";
+}
+
+std::string flange_cao() {
+  return R"CAO(V1
+# v4r built-in model "flange": a square steel plate 0.20 x 0.20 x 0.02 m with a cylinder
+# (radius 0.05 m, height 0.06 m, axis z) standing on the centre of its top face.
+# Origin at the centre of the plate's top face, z up. Units: metres.
+# Faces list their points counter-clockwise seen from outside (normals point out).
+# The cylinder is a .cao cylinder (2 axis points and a radius). ViSP tracks a .cao cylinder by
+# its two limb lines only and needs its rims as two extra "3D circles" (radius, centre point,
+# 2 points in the rim's plane); v4r's reader adds both rims of every cylinder as circle arcs,
+# so they are not listed again here (that would duplicate them).
+# 3D points
+10
+# plate: x in [-0.10, 0.10], y in [-0.10, 0.10], z in [-0.02, 0]
+-0.10 -0.10 -0.02   # 0
+ 0.10 -0.10 -0.02   # 1
+ 0.10  0.10 -0.02   # 2
+-0.10  0.10 -0.02   # 3
+-0.10 -0.10  0.00   # 4
+ 0.10 -0.10  0.00   # 5
+ 0.10  0.10  0.00   # 6
+-0.10  0.10  0.00   # 7
+# cylinder axis: bottom (on the plate) and top centre
+ 0.00  0.00  0.00   # 8
+ 0.00  0.00  0.06   # 9
+# 3D lines
+0
+# Faces from 3D lines
+0
+# Faces from 3D points
+6
+4 0 3 2 1   # plate bottom (z = -0.02)
+4 4 5 6 7   # plate top    (z = 0)
+4 0 1 5 4   # plate front  (y = -0.10)
+4 2 3 7 6   # plate back   (y = +0.10)
+4 1 2 6 5   # plate right  (x = +0.10)
+4 3 0 4 7   # plate left   (x = -0.10)
+# 3D cylinders
+1
+8 9 0.05   # axis from point 8 to point 9, radius 0.05
 # 3D circles
 0
 )CAO";

@@ -78,10 +78,17 @@ Expected<void> write_sequence(const std::string& dir, const std::string& model_c
   // Frames of an earlier, longer sequence in the same directory would be read as part of this one.
   if (auto r = remove_stale_frames(root / "frames", trajectory.size()); !r) return r;
 
-  const Renderer renderer(cam, opt);
+  RenderOptions o = opt;
+  if (o.cycle_frames <= 0) o.cycle_frames = static_cast<int>(trajectory.size());
+  Renderer renderer(cam, o);
+  renderer.set_scene_reference(*model, trajectory);
+  // Motion blur needs the pose before frame 0: extrapolated with constant velocity.
+  const geometry::SE3 before_first =
+      trajectory.size() > 1 ? trajectory[0] * trajectory[1].inverse() * trajectory[0] : trajectory[0];
   for (std::size_t i = 0; i < trajectory.size(); ++i) {
     const fs::path frame_path = root / "frames" / fmt::format("{:06d}.png", i);
-    const cv::Mat img = renderer.render(*model, trajectory[i], static_cast<int>(i));
+    const geometry::SE3* prev = i > 0 ? &trajectory[i - 1] : &before_first;
+    const cv::Mat img = renderer.render(*model, trajectory[i], static_cast<int>(i), prev);
     bool ok = false;
     try {
       ok = cv::imwrite(frame_path.string(), img);

@@ -12,6 +12,7 @@
 #include "v4r/io/camera_io.hpp"
 #include "v4r/io/pose_io.hpp"
 #include "v4r/model/cao_reader.hpp"
+#include "v4r/synth/conditions.hpp"
 #include "v4r/synth/renderer.hpp"
 
 namespace v4r::synth {
@@ -50,6 +51,44 @@ class ScratchDir {
 TEST(Models, DataFilesEqualTheBuiltInModels) {
   EXPECT_EQ(read_file(repo_root() / "data" / "box.cao"), box_cao());
   EXPECT_EQ(read_file(repo_root() / "data" / "ship_mockup.cao"), ship_mockup_cao());
+  EXPECT_EQ(read_file(repo_root() / "data" / "flange.cao"), flange_cao());
+}
+
+TEST(Models, FlangeIsAPlateWithACylinderAndItsTwoRims) {
+  auto m = model::parse_cao(flange_cao(), "flange.cao");
+  ASSERT_TRUE(m.has_value()) << m.error().to_string();
+  EXPECT_EQ(m->faces().size(), 6u);
+  EXPECT_EQ(m->lines().size(), 12u);
+  for (const auto& l : m->lines()) EXPECT_NE(l.face_right, model::kNone);  // a closed plate
+  // Plate 0.20 x 0.20 x 0.02 m below z = 0, centred on the origin; outward normals.
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e9), hi = -lo;
+  for (const auto& f : m->faces())
+    for (auto j : f.loop) {
+      lo = lo.cwiseMin(m->junctions()[j].p);
+      hi = hi.cwiseMax(m->junctions()[j].p);
+    }
+  EXPECT_TRUE(lo.isApprox(Eigen::Vector3d(-0.10, -0.10, -0.02)));
+  EXPECT_TRUE(hi.isApprox(Eigen::Vector3d(0.10, 0.10, 0.0)));
+  for (const auto& f : m->faces()) {
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+    for (auto j : f.loop) c += m->junctions()[j].p;
+    c /= static_cast<double>(f.loop.size());
+    EXPECT_GT(f.normal.dot(c - Eigen::Vector3d(0, 0, -0.01)), 0.0);
+  }
+  // One cylinder on the plate's top face, axis z, radius 0.05 m, height 0.06 m ...
+  ASSERT_EQ(m->cylinders().size(), 1u);
+  const model::Cylinder& cyl = m->cylinders()[0];
+  EXPECT_TRUE(cyl.p1.isZero(1e-12));
+  EXPECT_TRUE(cyl.p2.isApprox(Eigen::Vector3d(0, 0, 0.06)));
+  EXPECT_DOUBLE_EQ(cyl.radius, 0.05);
+  // ... and its two rims once each (not duplicated by .cao circles).
+  ASSERT_EQ(m->arcs().size(), 2u);
+  EXPECT_NEAR(m->arcs()[0].center.z(), 0.0, 1e-12);
+  EXPECT_NEAR(m->arcs()[1].center.z(), 0.06, 1e-12);
+  for (const auto& a : m->arcs()) {
+    EXPECT_DOUBLE_EQ(a.radius, 0.05);
+    EXPECT_NEAR(std::abs(a.normal.z()), 1.0, 1e-12);
+  }
 }
 
 TEST(Models, BoxHasTheRightSizeAndOutwardNormals) {
@@ -169,6 +208,37 @@ TEST(Sequence, WritesAllFiles) {
   rows = io::load_pose_csv((root / "gt.csv").string());
   ASSERT_TRUE(rows.has_value());
   EXPECT_EQ(rows->size(), 2u);
+}
+
+TEST(Sequence, AppliesTheConditionsOverTheSequence) {
+  ScratchDir dir("cond");
+  TrajectorySpec spec;
+  spec.frames = 4;
+  spec.T0 = geometry::look_at(0.6, -0.6, 0.75);
+  const auto traj = make_trajectory(trajectory_spec_for(Condition::kFast, spec));
+  RenderOptions opt =
+      options_for(Condition::kBlur, options_for(Condition::kOcclusion, options_for(Condition::kShadow)));
+  opt.colour = false;
+  const auto cam = default_camera();
+  auto r = write_sequence(dir.path().string(), flange_cao(), cam, traj, opt);
+  ASSERT_TRUE(r.has_value()) << r.error().to_string();
+  // The frames are the renderer's, with a cycle of the sequence's length, the scene laid out
+  // for this trajectory and each frame exposed from the previous pose (frame 0: extrapolated).
+  const model::Model m = model::parse_cao(flange_cao(), "flange").value();
+  RenderOptions o = opt;
+  o.cycle_frames = 4;
+  Renderer ren(cam, o);
+  ren.set_scene_reference(m, traj);
+  const geometry::SE3 before = traj[0] * traj[1].inverse() * traj[0];
+  for (int i = 0; i < 4; ++i) {
+    char name[32];
+    std::snprintf(name, sizeof(name), "%06d.png", i);
+    const cv::Mat img = cv::imread((dir.path() / "frames" / name).string(), cv::IMREAD_UNCHANGED);
+    ASSERT_FALSE(img.empty()) << name;
+    const auto k = static_cast<std::size_t>(i);
+    EXPECT_EQ(cv::norm(img, ren.render(m, traj[k], i, i > 0 ? &traj[k - 1] : &before), cv::NORM_INF), 0.0) << name;
+  }
+  EXPECT_EQ(read_file(dir.path() / "model.cao"), flange_cao());
 }
 
 TEST(Sequence, ErrorsNameThePath) {
