@@ -20,6 +20,8 @@ struct TrackOptions {
   std::optional<geometry::SE3> init_pose;
   std::string init_pose_file;
   pipeline::CycleParams params;
+  double fps = 30.0;        ///< frame rate of the input (time stamps for the filter); <= 0: default interval
+  double mesh_scale = 1.0;  ///< file units -> metres for mesh models
   bool quiet = false;
 };
 
@@ -33,7 +35,7 @@ struct TrackSummary {
 };
 
 /// Loads a model by extension (.cao today; meshes join later). Errors name the file.
-Expected<std::shared_ptr<const model::Model>> load_model(const std::string& path);
+Expected<std::shared_ptr<const model::Model>> load_model(const std::string& path, double mesh_scale = 1.0);
 
 /// Runs `v4r track`: loads inputs, tracks every frame, writes the CSV and the overlay.
 Expected<TrackSummary> run_track(const TrackOptions& opt);

@@ -5,6 +5,7 @@
 
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <opencv2/imgproc.hpp>
 
 #include "app.hpp"
@@ -16,6 +17,7 @@
 #include "v4r/io/pose_io.hpp"
 #include "v4r/model/cao_reader.hpp"
 #include "v4r/pipeline/evaluation.hpp"
+#include "v4r/synth/conditions.hpp"
 #include "v4r/synth/renderer.hpp"
 
 namespace fs = std::filesystem;
@@ -29,14 +31,17 @@ struct RenderArgs {
   double speed = 1.0, distance = 0.6, azimuth = -0.6, elevation = 0.75, noise = 2.0;
   unsigned seed = 7;
   bool grey = false;
+  bool noise_given = false;
+  std::vector<std::string> conditions{"regular"};
 };
 
 /// The built-in model names map to their .cao text; anything else is a path.
 Expected<std::string> model_text(const std::string& name) {
   if (name == "box") return synth::box_cao();
   if (name == "ship" || name == "ship_mockup") return synth::ship_mockup_cao();
+  if (name == "flange") return synth::flange_cao();
   std::FILE* f = std::fopen(name.c_str(), "rb");
-  if (!f) return make_error(name, 0, 0, "model file not found (built-in models: box, ship)");
+  if (!f) return make_error(name, 0, 0, "model file not found (built-in models: box, ship, flange)");
   std::string s;
   char buf[4096];
   std::size_t n;
@@ -55,7 +60,19 @@ std::vector<geometry::SE3> trajectory_for(const RenderArgs& a) {
   spec.frames = a.frames;
   spec.speed = a.speed;
   spec.T0 = geometry::look_at(a.distance, a.azimuth, a.elevation);
+  for (const std::string& c : a.conditions)
+    if (auto cond = synth::parse_condition(c)) spec = synth::trajectory_spec_for(*cond, spec);
   return synth::make_trajectory(spec);
+}
+
+synth::RenderOptions render_options_for(const RenderArgs& a) {
+  synth::RenderOptions ro;
+  ro.seed = a.seed;
+  ro.colour = !a.grey;
+  for (const std::string& c : a.conditions)
+    if (auto cond = synth::parse_condition(c)) ro = synth::options_for(*cond, ro);
+  if (a.noise_given) ro.noise_sigma = a.noise;  // an explicit --noise wins over the conditions
+  return ro;
 }
 
 int cmd_render(const RenderArgs& a) {
@@ -69,11 +86,7 @@ int cmd_render(const RenderArgs& a) {
     fmt::print(stderr, "v4r render: error: {}\n", cam.error().to_string());
     return 1;
   }
-  synth::RenderOptions ro;
-  ro.noise_sigma = a.noise;
-  ro.seed = a.seed;
-  ro.colour = !a.grey;
-  auto r = synth::write_sequence(a.out, *text, *cam, trajectory_for(a), ro);
+  auto r = synth::write_sequence(a.out, *text, *cam, trajectory_for(a), render_options_for(a));
   if (!r) {
     fmt::print(stderr, "v4r render: error: {}\n", r.error().to_string());
     return 1;
@@ -102,13 +115,13 @@ int cmd_demo(const std::string& out) {
   return rc;
 }
 
-int cmd_bench(const RenderArgs& a, int repeat) {
+int cmd_bench(const RenderArgs& a, int repeat, double budget_ms) {
   auto text = model_text(a.model);
   if (!text) {
     fmt::print(stderr, "v4r bench: error: {}\n", text.error().to_string());
     return 1;
   }
-  auto m = model::parse_cao(*text, a.model);
+  auto m = model::parse_cao(*text, a.model);  // built-in or .cao
   if (!m) {
     fmt::print(stderr, "v4r bench: error: {}\n", m.error().to_string());
     return 1;
@@ -116,14 +129,19 @@ int cmd_bench(const RenderArgs& a, int repeat) {
   auto model = std::make_shared<const model::Model>(std::move(*m));
   const geometry::PinholeCamera cam = synth::default_camera();
   const auto traj = trajectory_for(a);
-  synth::RenderOptions ro;
+  synth::RenderOptions ro = render_options_for(a);
   ro.colour = false;
+  ro.cycle_frames = a.frames;
   synth::Renderer renderer(cam, ro);
+  renderer.set_scene_reference(*model, traj);
   std::vector<cv::Mat> frames;
-  for (int i = 0; i < a.frames; ++i) frames.push_back(renderer.render(*model, traj[i], i));
+  for (int i = 0; i < a.frames; ++i) frames.push_back(renderer.render(*model, traj[i], i, i > 0 ? &traj[i - 1] : nullptr));
   app::TrackSummary s;
+  std::int64_t overruns = 0;
   for (int r = 0; r < repeat; ++r) {
-    pipeline::SingleObjectTracker tracker(model, cam);
+    pipeline::CycleParams params;
+    params.budget.cycle_ms = budget_ms;
+    pipeline::SingleObjectTracker tracker(model, cam, params);
     tracker.set_pose(traj[0]);
     for (int i = 0; i < a.frames; ++i) {
       const auto res = tracker.track(io::as_view(frames[i]));
@@ -135,11 +153,12 @@ int cmd_bench(const RenderArgs& a, int repeat) {
       s.features_used.push_back(res.report.features_used);
       if (res.report.status == scene::TrackStatus::kLost) ++s.lost;
       ++s.frames;
+      overruns = res.overruns;
     }
   }
   const auto used = pipeline::percentiles(std::vector<double>(s.features_used.begin(), s.features_used.end()));
-  fmt::print("v4r bench: model {} at {}x{}, {} frames x {} runs, median {} features used per frame\n", a.model,
-             cam.width, cam.height, a.frames, repeat, used.median);
+  fmt::print("v4r bench: model {} ({}) at {}x{}, {} frames x {} runs, median {} features used per frame, {} overruns\n",
+             a.model, fmt::join(a.conditions, ","), cam.width, cam.height, a.frames, repeat, used.median, overruns);
   app::print_report(s, &traj);
   return 0;
 }
@@ -184,6 +203,8 @@ int main(int argc, char** argv) {
     track->add_option("--output", to.output_csv, "Pose CSV to write")->required();
     track->add_option("--overlay", to.overlay, "Overlay video (.avi/.mp4) or folder of PNGs");
     track->add_option("--gt", to.gt_csv, "Ground-truth CSV: print accuracy");
+    track->add_option("--fps", to.fps, "Input frame rate (time stamps for the motion filter)")->check(CLI::Range(0.0, 10000.0))->capture_default_str();
+    track->add_option("--mesh-scale", to.mesh_scale, "Mesh models: file units to metres (0.001 for mm)")->check(CLI::Range(1e-9, 1e9));
     std::string config_file;
     std::vector<std::string> sets;
     track->add_option("--config", config_file, "YAML file of tracker parameters (see `v4r config`)");
@@ -191,12 +212,18 @@ int main(int argc, char** argv) {
 
     RenderArgs ra;
     auto* render = app.add_subcommand("render", "Render a synthetic sequence with ground truth");
-    render->add_option("--model", ra.model, "box, ship, or a .cao file")->capture_default_str();
+    render->add_option("--model", ra.model, "box, ship, flange, or a .cao file")->capture_default_str();
     render->add_option("--out", ra.out, "Output folder")->required();
     render->add_option("--frames", ra.frames, "Number of frames")->check(CLI::Range(1, 100000))->capture_default_str();
     render->add_option("--speed", ra.speed, "Motion speed factor")->check(CLI::Range(0.0, 100.0))->capture_default_str();
     render->add_option("--distance", ra.distance, "Initial distance, m")->check(CLI::Range(0.05, 100.0))->capture_default_str();
-    render->add_option("--noise", ra.noise, "Sensor noise sigma, grey levels")->check(CLI::Range(0.0, 100.0))->capture_default_str();
+    auto* noise_opt = render->add_option("--noise", ra.noise, "Sensor noise sigma, grey levels (default: the condition's)")
+                          ->check(CLI::Range(0.0, 100.0));
+    render->add_option("--condition", ra.conditions, "Conditions, comma separated: " + fmt::format("{}", fmt::join(synth::condition_names(), ", ")))
+        ->delimiter(',')
+        ->check(CLI::IsMember(synth::condition_names()));
+    render->add_option("--azimuth", ra.azimuth, "Initial view azimuth, rad")->capture_default_str();
+    render->add_option("--elevation", ra.elevation, "Initial view elevation, rad")->check(CLI::Range(-1.5, 1.5))->capture_default_str();
     render->add_option("--seed", ra.seed, "Random seed")->capture_default_str();
     render->add_option("--camera", ra.camera, "Calibration file (default: built-in 640x480)");
     render->add_flag("--grey", ra.grey, "Render grey images");
@@ -208,7 +235,12 @@ int main(int argc, char** argv) {
     RenderArgs ba;
     int repeat = 5;
     auto* bench = app.add_subcommand("bench", "Benchmark the vision cycle on a rendered sequence (in memory)");
-    bench->add_option("--model", ba.model, "box, ship, or a .cao file")->capture_default_str();
+    bench->add_option("--model", ba.model, "box, ship, flange, or a .cao file")->capture_default_str();
+    bench->add_option("--condition", ba.conditions, "Rendering conditions (see render)")
+        ->delimiter(',')
+        ->check(CLI::IsMember(synth::condition_names()));
+    double bench_budget = 0.0;
+    bench->add_option("--budget", bench_budget, "Cycle time budget, ms (0: none)")->check(CLI::Range(0.0, 1000.0));
     bench->add_option("--frames", ba.frames, "Frames")->check(CLI::Range(2, 100000))->capture_default_str();
     bench->add_option("--repeat", repeat, "Runs over the sequence")->check(CLI::Range(1, 1000))->capture_default_str();
 
@@ -223,6 +255,7 @@ int main(int argc, char** argv) {
     inspect->add_option("model", inspect_path, "Model file")->required();
 
     CLI11_PARSE(app, argc, argv);
+    ra.noise_given = noise_opt->count() > 0;
 
     if (*track) {
       if (!init_pose_str.empty()) {
@@ -250,7 +283,7 @@ int main(int argc, char** argv) {
     }
     if (*render) return cmd_render(ra);
     if (*demo) return cmd_demo(demo_out);
-    if (*bench) return cmd_bench(ba, repeat);
+    if (*bench) return cmd_bench(ba, repeat, bench_budget);
     if (*inspect) {
       auto m = app::load_model(inspect_path);
       if (!m) {

@@ -13,6 +13,7 @@
 #include "v4r/io/frame_source.hpp"
 #include "v4r/io/pose_io.hpp"
 #include "v4r/model/cao_reader.hpp"
+#include "v4r/model/mesh_reader.hpp"
 #include "v4r/pipeline/evaluation.hpp"
 #include "v4r/viz/overlay.hpp"
 
@@ -20,17 +21,24 @@ namespace v4r::app {
 
 namespace fs = std::filesystem;
 
-Expected<std::shared_ptr<const model::Model>> load_model(const std::string& path) {
+Expected<std::shared_ptr<const model::Model>> load_model(const std::string& path, double mesh_scale) {
   std::string ext = fs::path(path).extension().string();
   for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   if (!fs::exists(path)) return make_error(path, 0, 0, "model file not found");
+  Expected<model::Model> m = make_error("");
   if (ext == ".cao") {
-    auto m = model::load_cao(path);
-    if (!m) return m.error();
-    if (m->lines().empty()) return make_error(path, 0, 0, "model has no edges to track");
-    return std::shared_ptr<const model::Model>(std::make_shared<model::Model>(std::move(*m)));
+    m = model::load_cao(path);
+  } else if (ext == ".obj" || ext == ".ply" || ext == ".stl" || ext == ".off" || ext == ".dae" || ext == ".fbx" ||
+             ext == ".3ds" || ext == ".gltf" || ext == ".glb") {
+    model::MeshImportOptions mo;
+    mo.scale = mesh_scale;
+    m = model::load_mesh(path, mo);
+  } else {
+    return make_error(path, 0, 0, fmt::format("unsupported model format '{}' (supported: .cao, .obj, .ply, .stl)", ext));
   }
-  return make_error(path, 0, 0, fmt::format("unsupported model format '{}' (supported: .cao)", ext));
+  if (!m) return m.error();
+  if (m->lines().empty() && m->arcs().empty()) return make_error(path, 0, 0, "model has no edges to track");
+  return std::shared_ptr<const model::Model>(std::make_shared<model::Model>(std::move(*m)));
 }
 
 namespace {
@@ -72,7 +80,7 @@ class OverlayWriter {
 }  // namespace
 
 Expected<TrackSummary> run_track(const TrackOptions& opt) {
-  auto model = load_model(opt.model_path);
+  auto model = load_model(opt.model_path, opt.mesh_scale);
   if (!model) return model.error();
   auto cam = io::load_camera(opt.camera_path);
   if (!cam) return cam.error();
@@ -101,7 +109,8 @@ Expected<TrackSummary> run_track(const TrackOptions& opt) {
     if (!csv) return make_error(opt.output_csv, 0, 0, "cannot open output CSV for writing");
     std::fprintf(csv,
                  "frame,tx,ty,tz,qw,qx,qy,qz,cycle_ms,status,quality,features_visible,features_found,features_used,"
-                 "outliers,rms_px\n");
+                 "outliers,rms_px,lines_used,circle_points_used,junctions_used,degrade_level,"
+                 "f_tx,f_ty,f_tz,f_qw,f_qx,f_qy,f_qz,vx,vy,vz,wx,wy,wz\n");
   }
   struct Closer {
     std::FILE* f;
@@ -130,7 +139,8 @@ Expected<TrackSummary> run_track(const TrackOptions& opt) {
     } else {
       grey = frame;
     }
-    const pipeline::FrameResult r = tracker.track(io::as_view(grey));
+    const double stamp = opt.fps > 0 ? i / opt.fps : -1.0;
+    const pipeline::FrameResult r = tracker.track(io::as_view(grey), io::as_colour_view(frame), stamp);
     s.poses.push_back(r.T_cam_obj);
     s.cycle_ms.push_back(r.cycle_ms);
     s.visibility_ms.push_back(r.visibility_ms);
@@ -142,10 +152,17 @@ Expected<TrackSummary> run_track(const TrackOptions& opt) {
     if (csv) {
       const auto& q = r.T_cam_obj.quaternion();
       const auto& t = r.T_cam_obj.translation();
-      std::fprintf(csv, "%d,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.4f,%s,%.3f,%d,%d,%d,%d,%.3f\n", i, t.x(), t.y(), t.z(),
-                   q.w(), q.x(), q.y(), q.z(), r.cycle_ms, scene::to_string(r.report.status), r.report.quality,
-                   r.report.features_visible, r.report.features_found, r.report.features_used, r.report.outliers,
-                   r.report.rms_px);
+      const auto& fq = r.T_cam_obj_filtered.quaternion();
+      const auto& ft = r.T_cam_obj_filtered.translation();
+      const auto& v = r.velocity;
+      std::fprintf(csv,
+                   "%d,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.4f,%s,%.3f,%d,%d,%d,%d,%.3f,%d,%d,%d,%d,"
+                   "%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g\n",
+                   i, t.x(), t.y(), t.z(), q.w(), q.x(), q.y(), q.z(), r.cycle_ms, scene::to_string(r.report.status),
+                   r.report.quality, r.report.features_visible, r.report.features_found, r.report.features_used,
+                   r.report.outliers, r.report.rms_px, r.report.lines_used, r.report.circle_points_used,
+                   r.report.junctions_used, r.degrade_level, ft.x(), ft.y(), ft.z(), fq.w(), fq.x(), fq.y(), fq.z(),
+                   v[0], v[1], v[2], v[3], v[4], v[5]);
     }
     if (!opt.overlay.empty()) {
       cv::Mat vis;

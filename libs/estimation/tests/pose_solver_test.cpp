@@ -43,6 +43,11 @@ void operator delete[](void* p, std::align_val_t) noexcept { std::free(p); }
 void operator delete(void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
 void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
 
+namespace v4r_test {
+/// Allocations so far (used by the tests of other files of this executable).
+long allocation_count() { return g_allocations.load(); }
+}  // namespace v4r_test
+
 using namespace v4r::estimation;
 using v4r::geometry::Matrix6d;
 using v4r::geometry::SE3;
@@ -432,7 +437,7 @@ TEST(PoseSolver, DegenerateInputFailsCleanly) {
   PoseSolver solver(params_600());
 
   // Nothing, and two points (4 scalar residuals < 6 unknowns).
-  EXPECT_EQ(solver.solve(T0, {}, {}).status, SolveStatus::kTooFewObservations);
+  EXPECT_EQ(solver.solve(T0, ObservationSet{}).status, SolveStatus::kTooFewObservations);
   const std::vector<PointObservation> two(o.points.begin(), o.points.begin() + 2);
   std::vector<std::uint8_t> flags(2, 7);
   const PoseResult r2 = solver.solve(T0, two, {}, flags);

@@ -17,6 +17,26 @@ ParamRegistry make_registry(CycleParams& p) {
   r.add("track.min_inlier_ratio", &t.min_inlier_ratio, 0.05, 1.0, "", "rows with an inlier for a line to count as found");
   r.add("track.max_angle", &t.max_angle, 0.01, 1.5, "rad", "largest angle of a fitted line to its window");
   r.add("search.half_width", &p.search_half_width, 2, 128, "px", "window half width for features not found in the last frame");
+  // Ellipses (paper 3.2).
+  auto& el = p.ellipse;
+  r.add("ellipse.half_length", &el.half_length, 2, 64, "px", "tracking line half length across an ellipse");
+  r.add("ellipse.min_gradient", &el.min_gradient, 0.0, 255.0, "grey/px", "weakest ellipse edge point gradient");
+  r.add("ellipse.ransac_iterations", &el.ransac_iterations, 1, 10000, "", "RANSAC hypotheses per ellipse");
+  r.add("ellipse.inlier_tolerance", &el.inlier_tolerance, 0.05, 10.0, "px", "RANSAC inlier distance");
+  r.add("ellipse.min_inlier_ratio", &el.min_inlier_ratio, 0.05, 1.0, "", "tracking lines with an inlier for an ellipse to count as found");
+  r.add("ellipse.samples", &p.circle_samples, 8, 64, "", "tracking lines per full circle");
+  r.add("ellipse.max_points", &p.circle_max_points, 3, 64, "", "edge points per ellipse given to the pose solver");
+  r.add("ellipse.sigma", &p.circle_sigma_px, 0.01, 20.0, "px", "a-priori noise of an ellipse edge point");
+  r.add("ellipse.min_cos", &p.circle_min_cos, 0.0, 1.0, "", "circles seen more edge-on than this are not tracked");
+  // Cue integration (paper 4.1).
+  r.add("track.use_cues", &t.use_cues, "check edge pixels against the learned appearance of the object side");
+  r.add("track.appearance_k", &t.appearance_k, 0.5, 20.0, "sigma", "appearance tolerance");
+  r.add("track.appearance_min_sigma", &t.appearance_min_sigma, 0.0, 128.0, "grey", "floor of the intensity deviation");
+  r.add("track.learning_rate", &t.learning_rate, 0.0, 1.0, "", "weight of the current frame in the learned appearance");
+  // Junctions (paper 3.3).
+  r.add("junction.enabled", &p.use_junctions, "intersect tracked edges at model junctions");
+  r.add("junction.min_angle", &p.junction_min_angle, 0.0, 1.5707963, "rad", "smallest angle between intersected edges");
+  r.add("junction.sigma_scale", &p.junction_sigma_scale, 0.1, 100.0, "", "junction sigma = line sigma * this / sin(angle)");
   // Pose (paper 5).
   auto& s = p.solver;
   r.add("solver.line_sigma", &p.line_sigma_px, 0.01, 20.0, "px", "a-priori noise of a tracked line");
@@ -44,6 +64,22 @@ ParamRegistry make_registry(CycleParams& p) {
   r.add("cycle.ambiguity_angle", &p.ambiguity_angle, 0.0, 1.0, "rad", "edges closer than this in direction count as parallel");
   r.add("cycle.ambiguity_margin", &p.ambiguity_margin_px, -100.0, 100.0, "px", "parallel edges nearer than half_width + this are ambiguous");
   r.add("cycle.ambiguity_min_overlap", &p.ambiguity_min_overlap, 0.0, 1.0, "", "overlap (fraction) for ambiguity");
+  // Time budget (paper 3.4).
+  r.add("budget.cycle_ms", &p.budget.cycle_ms, 0.0, 10000.0, "ms", "cycle time budget (0: none)");
+  r.add("budget.cost_per_sample_us", &p.budget.cost_per_sample_us, 0.001, 1000.0, "us", "predicted cost of one window row");
+  r.add("budget.adapt", &p.budget.adapt, "learn the cost per sample from measured times");
+  r.add("budget.reduced_rows", &p.budget.reduced_rows, 3, 256, "", "rows per window when degraded");
+  r.add("budget.reserve_fraction", &p.budget.reserve_fraction, 0.0, 0.9, "", "part of the budget kept for pose and filter");
+  // Recovery.
+  r.add("recovery.max_search_level", &p.recovery.max_search_level, 0, 8, "", "search windows grow to (1 + level) x search.half_width");
+  r.add("recovery.lost_quality", &p.recovery.lost_quality, 0.0, 1.0, "", "quality below this: lost");
+  r.add("recovery.reset_velocity_after", &p.recovery.reset_velocity_after, 1, 1000, "frames", "bad frames before the velocity is dropped");
+  r.add("recovery.gate_chi2", &p.recovery.gate_chi2, 1.0, 1e9, "", "degraded measurements further from the prediction are rejected");
+  // Temporal filter.
+  r.add("filter.enabled", &p.use_filter, "predict and smooth with the constant-velocity EKF");
+  r.add("filter.accel_noise", &p.filter.accel_noise, 0.0, 1000.0, "m/s^2", "white-noise acceleration (translation)");
+  r.add("filter.angular_accel_noise", &p.filter.angular_accel_noise, 0.0, 1000.0, "rad/s^2", "white-noise angular acceleration");
+  r.add("filter.frame_interval", &p.frame_interval_s, 1e-4, 10.0, "s", "time between frames without time stamps");
   return r;
 }
 

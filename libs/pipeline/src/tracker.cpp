@@ -14,12 +14,15 @@ void SingleObjectTracker::set_pose(const geometry::SE3& T_cam_obj) {
   if (!scene_.objects().empty()) scene_.set_pose(0, T_cam_obj);
 }
 
-FrameResult SingleObjectTracker::track(const image::ImageView& grey) {
-  const CycleReport& rep = cycle_.process(scene_, std::span<const image::ImageView>(&grey, 1));
+FrameResult SingleObjectTracker::track(const image::ImageView& grey, const image::ColourView& colour, double stamp_s) {
+  const CameraImage img{grey, colour};
+  const CycleReport& rep = cycle_.process(scene_, std::span<const CameraImage>(&img, 1), stamp_s);
   FrameResult r;
   if (!scene_.objects().empty()) {
     const scene::Object& o = scene_.objects()[0];
     r.T_cam_obj = o.T_ref_obj;
+    r.T_cam_obj_filtered = o.T_ref_obj_filtered;
+    r.velocity = o.velocity;
     r.covariance = o.covariance;
     r.report = rep.objects[0];
   }
@@ -27,6 +30,8 @@ FrameResult SingleObjectTracker::track(const image::ImageView& grey) {
   r.visibility_ms = rep.visibility_ms;
   r.track_ms = rep.track_ms;
   r.solve_ms = rep.solve_ms;
+  r.degrade_level = rep.degrade_level;
+  r.overruns = rep.overruns;
   return r;
 }
 

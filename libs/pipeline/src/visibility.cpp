@@ -38,6 +38,46 @@ bool VisibilityTester::occluded(const Eigen::Vector3d& p_cam, model::Index face_
   return false;
 }
 
+bool VisibilityTester::hidden_by_cylinder(const Eigen::Vector3d& p_cam) const {
+  const double tp = p_cam.norm();
+  if (tp < 1e-9) return false;
+  const Eigen::Vector3d d = p_cam / tp;  // line of sight, unit
+  const double t_max = tp * (1.0 - 1e-4) - 1e-5;
+  for (const CylinderCache& c : cylinders_) {
+    // Side: |(t d - p1) - ((t d - p1).a) a| = r, a quadratic in t.
+    const Eigen::Vector3d dp = d - d.dot(c.axis) * c.axis;
+    const Eigen::Vector3d op = -c.p1 - (-c.p1).dot(c.axis) * c.axis;
+    const double A = dp.squaredNorm(), B = 2.0 * dp.dot(op), C = op.squaredNorm() - c.radius * c.radius;
+    if (A > 1e-12) {
+      const double disc = B * B - 4.0 * A * C;
+      if (disc > 0.0) {
+        const double sq = std::sqrt(disc);
+        for (const double t : {(-B - sq) / (2.0 * A), (-B + sq) / (2.0 * A)}) {
+          if (t <= 0.0 || t >= t_max) continue;
+          const double h = (t * d - c.p1).dot(c.axis);
+          if (h >= 0.0 && h <= c.length) return true;
+        }
+      }
+    }
+    // Caps: discs at both ends.
+    const double den = d.dot(c.axis);
+    if (std::abs(den) > 1e-12) {
+      for (const double h : {0.0, c.length}) {
+        const Eigen::Vector3d centre = c.p1 + h * c.axis;
+        const double t = centre.dot(c.axis) / den;
+        if (t <= 0.0 || t >= t_max) continue;
+        if ((t * d - centre).squaredNorm() < c.radius * c.radius) return true;
+      }
+    }
+  }
+  return false;
+}
+
+bool VisibilityTester::hidden(const Eigen::Vector3d& p_cam, model::Index face_a, model::Index face_b) const {
+  if (p_cam.z() <= 1e-6) return true;
+  return occluded(p_cam, face_a, face_b) || hidden_by_cylinder(p_cam);
+}
+
 void VisibilityTester::update(const model::Model& model, const geometry::SE3& T_cam_obj,
                               const geometry::PinholeCamera& cam, std::span<std::uint8_t> face_visible,
                               std::span<EdgeVisibility> out) {
@@ -94,6 +134,18 @@ void VisibilityTester::update(const model::Model& model, const geometry::SE3& T_
     }
   }
 
+  cylinders_.clear();
+  cylinders_.reserve(model.cylinders().size());  // allocates once per model size
+  for (const model::Cylinder& cy : model.cylinders()) {
+    CylinderCache c;
+    c.p1 = T_cam_obj * cy.p1;
+    const Eigen::Vector3d p2 = T_cam_obj * cy.p2;
+    c.length = (p2 - c.p1).norm();
+    if (c.length < 1e-9) continue;
+    c.axis = (p2 - c.p1) / c.length;
+    c.radius = cy.radius;
+    cylinders_.push_back(c);
+  }
   const int n = std::max(2, p_.samples);
   if (static_cast<int>(sample_ok_.size()) < n) sample_ok_.resize(n);
   const auto& lines = model.lines();
@@ -123,7 +175,7 @@ void VisibilityTester::update(const model::Model& model, const geometry::SE3& T_
       const Eigen::Vector3d P = A + s * (B - A);
       bool ok = P.z() > 1e-3;
       if (ok) ok = cam.in_image(cam.project(P), p_.image_margin);
-      if (ok) ok = !occluded(P, e.face_left, e.face_right);
+      if (ok) ok = !occluded(P, e.face_left, e.face_right) && !hidden_by_cylinder(P);
       if (ok) {
         if (run_start < 0) run_start = k;
         if (k - run_start + 1 > best_len) {

@@ -6,16 +6,24 @@
 
 #include <Eigen/Cholesky>
 
-#include "v4r/core/clock.hpp"
-
 namespace v4r::pipeline {
 
 namespace {
 
-features::LineTrackerParams search_params(const CycleParams& p) {
+constexpr double kTwoPi = 6.283185307179586;
+
+features::LineTrackerParams line_params(const CycleParams& p, int half_width, int rows) {
   features::LineTrackerParams s = p.track;
-  s.half_width = p.search_half_width;
+  s.half_width = half_width;
+  s.rows = rows;
   return s;
+}
+
+features::EllipseTrackerParams ellipse_params(const CycleParams& p, int half_length, int max_samples) {
+  features::EllipseTrackerParams e = p.ellipse;
+  e.half_length = half_length;
+  e.max_samples = max_samples;
+  return e;
 }
 
 /// Adjoint of T for tangents ordered (v, w) with left updates: exp(Ad(T) x) * T == T * exp(x).
@@ -54,11 +62,40 @@ void undistorted_line(const geometry::PinholeCamera& K, const features::LineMeas
   n2 = c + dir * dir.dot(n2 - c);
 }
 
+/// Homogeneous image line through two normalised points.
+Eigen::Vector3d line_through(const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+  return Eigen::Vector3d(a.x(), a.y(), 1.0).cross(Eigen::Vector3d(b.x(), b.y(), 1.0));
+}
+
 }  // namespace
 
-VisionCycle::VisionCycle(const CycleParams& params)
-    : p_(params), tracker_(params.track), searcher_(search_params(params)), solver_(params.solver),
-      visibility_(params.visibility) {}
+VisionCycle::VisionCycle(const CycleParams& params, Clock::time_point (*now)())
+    : p_(params),
+      now_(now),
+      tracker_(params.track),
+      reduced_tracker_(line_params(params, params.track.half_width, std::max(3, params.budget.reduced_rows))),
+      ellipse_tracker_(params.ellipse),
+      ellipse_searcher_(ellipse_params(params, std::max(params.ellipse.half_length, params.search_half_width),
+                                       params.ellipse.max_samples)),
+      reduced_ellipse_tracker_(ellipse_params(params, params.ellipse.half_length, std::max(8, params.ellipse.max_samples / 2))),
+      solver_(params.solver),
+      visibility_(params.visibility) {
+  const int levels = std::max(0, params.recovery.max_search_level) + 1;
+  searchers_.reserve(levels);
+  for (int L = 0; L < levels; ++L) {
+    // Level 0 searches new and lost features; higher levels search wider and coarser after bad frames.
+    const int rows = L == 0 ? params.track.rows : std::max(8, params.track.rows / 2);
+    searchers_.emplace_back(line_params(params, params.search_half_width * (1 + L), rows));
+  }
+}
+
+void VisionCycle::set_params(const CycleParams& params) {
+  const std::int64_t frame = frame_;
+  const std::int64_t overruns = report_.overruns;
+  *this = VisionCycle(params, now_);
+  frame_ = frame;
+  report_.overruns = overruns;
+}
 
 const std::vector<Eigen::Vector2d>& VisionCycle::edgels(std::size_t camera) const {
   static const std::vector<Eigen::Vector2d> kEmpty;
@@ -66,21 +103,107 @@ const std::vector<Eigen::Vector2d>& VisionCycle::edgels(std::size_t camera) cons
 }
 
 void VisionCycle::prepare(const scene::Scene& scene) {
-  std::size_t max_lines = 0;
-  for (const scene::Object& o : scene.objects()) max_lines = std::max(max_lines, o.model->lines().size());
+  std::size_t max_lines = 0, max_junctions = 0, max_arcs = 0, total = 0;
+  for (const scene::Object& o : scene.objects()) {
+    max_lines = std::max(max_lines, o.model->lines().size());
+    max_junctions = std::max(max_junctions, o.model->junctions().size());
+    max_arcs = std::max(max_arcs, o.model->arcs().size());
+    total += (o.model->lines().size() + o.model->arcs().size()) * o.views.size();
+  }
+  const std::size_t max_circle_points = max_arcs * scene::ArcFeature::kMaxSamples;
   if (edge_vis_.size() < max_lines) edge_vis_.resize(max_lines);
-  if (line_obs_.capacity() < max_lines) {
+  if (line_obs_.capacity() < max_lines || point_obs_.capacity() < max_junctions ||
+      circle_obs_.capacity() < max_circle_points) {
     line_obs_.reserve(max_lines);
     line_obs_feature_.reserve(max_lines);
     line_inlier_.reserve(max_lines);
-    solver_.reserve(0, max_lines);
+    point_obs_.reserve(max_junctions);
+    point_inlier_.reserve(max_junctions);
+    circle_obs_.reserve(max_circle_points);
+    circle_obs_feature_.reserve(max_circle_points);
+    circle_inlier_.reserve(max_circle_points);
+    solver_.reserve(max_junctions, max_lines, max_circle_points);
   }
-  if (undistorted_.capacity() < static_cast<std::size_t>(p_.track.rows) * 4) undistorted_.reserve(p_.track.rows * 4);
+  if (curve_.capacity() < static_cast<std::size_t>(scene::ArcFeature::kMaxSamples)) curve_.reserve(scene::ArcFeature::kMaxSamples);
+  if (drop_scores_.capacity() < total) drop_scores_.reserve(total);
   if (edgels_.size() < scene.cameras().size()) edgels_.resize(scene.cameras().size());
+  const std::size_t per_camera = std::max<std::size_t>(1, total) * static_cast<std::size_t>(p_.track.rows + 2 * scene::ArcFeature::kMaxSamples);
   for (auto& e : edgels_)
-    if (e.capacity() < max_lines * static_cast<std::size_t>(p_.track.rows) * scene.objects().size())
-      e.reserve(max_lines * static_cast<std::size_t>(p_.track.rows) * std::max<std::size_t>(1, scene.objects().size()));
+    if (e.capacity() < per_camera) e.reserve(per_camera);
+  const std::size_t rows = static_cast<std::size_t>(std::max({p_.track.rows, p_.budget.reduced_rows, 64}));
+  if (undistorted_.capacity() < rows * 4) undistorted_.reserve(rows * 4);
   if (report_.objects.size() != scene.objects().size()) report_.objects.resize(scene.objects().size());
+}
+
+void VisionCycle::predict_view(scene::Object& obj, scene::View& view, const scene::Camera& cam) {
+  const model::Model& model = *obj.model;
+  const geometry::PinholeCamera& K = cam.intrinsics;
+  view.T_cam_obj = cam.T_ref_cam.inverse() * obj.T_pred;
+
+  // Visibility and the visible part of every edge.
+  visibility_.update(model, view.T_cam_obj, K, view.face_visible, std::span(edge_vis_.data(), model.lines().size()));
+  const Eigen::Matrix3d R = view.T_cam_obj.rotation();
+  for (scene::LineFeature& f : view.lines) {
+    const EdgeVisibility& ev = edge_vis_[f.edge];
+    f.visible = ev.visible;
+    f.grazing = ev.grazing;
+    f.dropped = false;
+    f.retrack = false;
+    if (!f.visible && !f.grazing) continue;
+    const Eigen::Vector3d A = model.line_point_a(f.edge), B = model.line_point_b(f.edge);
+    f.X1 = A + ev.s0 * (B - A);
+    f.X2 = A + ev.s1 * (B - A);
+  }
+  mark_ambiguous(view, cam);
+
+  // Which side of each visible edge shows the object (its visible faces), for cue integration.
+  const auto& faces = model.faces();
+  for (scene::LineFeature& f : view.lines) {
+    if (!f.visible || f.ambiguous) continue;
+    const model::LineEdge& e = model.lines()[f.edge];
+    const Eigen::Vector2d a = f.predicted.a, d = f.predicted.b - f.predicted.a;
+    const Eigen::Vector2d n(-d.y(), d.x());
+    bool side[2] = {false, false};
+    for (const model::Index fi : {e.face_left, e.face_right}) {
+      if (fi == model::kNone || !view.face_visible[fi]) continue;
+      Eigen::Vector3d c = Eigen::Vector3d::Zero();
+      for (const model::Index j : faces[fi].loop) c += model.junctions()[j].p;
+      c /= static_cast<double>(faces[fi].loop.size());
+      const Eigen::Vector3d pc = view.T_cam_obj * c;
+      if (pc.z() <= 1e-6) continue;
+      side[n.dot(K.project(pc) - a) > 0 ? 1 : 0] = true;
+    }
+    f.track.side[0].is_object = side[0];
+    f.track.side[1].is_object = side[1];
+  }
+
+  // Circle arcs: tracking lines at evenly spaced visible points of the projected circle.
+  const auto& arcs = model.arcs();
+  for (scene::ArcFeature& a : view.arcs) {
+    const model::CircleArc& arc = arcs[a.arc];
+    a.visible = false;
+    a.dropped = false;
+    a.retrack = false;
+    a.samples = 0;
+    const Eigen::Vector3d c_cam = view.T_cam_obj * arc.center;
+    const Eigen::Vector3d n_cam = R * arc.normal;
+    if (c_cam.z() <= 1e-6 || std::abs(n_cam.dot(c_cam.normalized())) < p_.circle_min_cos) continue;  // edge-on
+    if (arc.face != model::kNone && arc.face < view.face_visible.size() && !view.face_visible[arc.face]) continue;
+    const double span = std::clamp(arc.end - arc.start, 0.0, kTwoPi);
+    const int n = std::clamp(static_cast<int>(std::lround(p_.circle_samples * span / kTwoPi)), 8,
+                             scene::ArcFeature::kMaxSamples);
+    const Eigen::Vector3d y_axis = arc.normal.cross(arc.x_axis);
+    const bool full = span >= kTwoPi - 1e-9;
+    for (int k = 0; k < n; ++k) {
+      const double th = arc.start + span * (full ? static_cast<double>(k) / n : (k + 0.5) / n);
+      const Eigen::Vector3d X = arc.center + arc.radius * (std::cos(th) * arc.x_axis + std::sin(th) * y_axis);
+      const Eigen::Vector3d P = view.T_cam_obj * X;
+      if (P.z() <= 1e-3 || !K.in_image(K.project(P), p_.visibility.image_margin + p_.ellipse.half_length)) continue;
+      if (visibility_.hidden(P, arc.face)) continue;
+      a.X[a.samples++] = X;
+    }
+    a.visible = a.samples >= 8;
+  }
 }
 
 void VisionCycle::mark_ambiguous(scene::View& view, const scene::Camera& cam) const {
@@ -124,63 +247,232 @@ void VisionCycle::mark_ambiguous(scene::View& view, const scene::Camera& cam) co
   }
 }
 
-int VisionCycle::track_features(scene::View& view, const scene::Camera& cam, const image::ImageView& img,
-                                bool first_pass) {
+void VisionCycle::plan_budget(scene::Scene& scene) {
+  degrade_level_ = 0;
+  rows_per_line_ = p_.track.rows;
+  samples_per_circle_ = p_.ellipse.max_samples;
+  report_.degrade_level = 0;
+  report_.features_dropped = 0;
+  if (p_.budget.cycle_ms <= 0.0) return;
+  const double available_us = p_.budget.cycle_ms * 1000.0 * (1.0 - p_.budget.reserve_fraction);
+  const double cost = p_.budget.cost_per_sample_us;
+  auto predicted_us = [&](int rows, int circle_samples) {
+    long samples = 0;
+    for (const scene::Object& o : scene.objects()) {
+      if (o.status == scene::TrackStatus::kUninitialised) continue;
+      for (const scene::View& v : o.views) {
+        for (const scene::LineFeature& f : v.lines)
+          if (f.visible && !f.ambiguous && !f.dropped) samples += rows;
+        for (const scene::ArcFeature& a : v.arcs)
+          if (a.visible && !a.dropped) samples += std::min(a.samples, circle_samples);
+      }
+    }
+    return static_cast<double>(samples) * cost;
+  };
+  if (predicted_us(rows_per_line_, samples_per_circle_) <= available_us) return;
+  // Level 1: fewer samples per feature (the windows keep their size).
+  degrade_level_ = 1;
+  rows_per_line_ = std::max(3, p_.budget.reduced_rows);
+  samples_per_circle_ = std::max(8, p_.ellipse.max_samples / 2);
+  report_.degrade_level = 1;
+  if (predicted_us(rows_per_line_, samples_per_circle_) <= available_us) return;
+  // Level 2: leave out the least informative features: the shortest projected edges first
+  // (ellipses, which constrain several degrees of freedom, count as long as their circumference).
+  degrade_level_ = 2;
+  report_.degrade_level = 2;
+  drop_scores_.clear();
+  for (const scene::Object& o : scene.objects()) {
+    if (o.status == scene::TrackStatus::kUninitialised) continue;
+    for (const scene::View& v : o.views) {
+      for (const scene::LineFeature& f : v.lines)
+        if (f.visible && !f.ambiguous) drop_scores_.push_back(static_cast<float>((f.predicted.b - f.predicted.a).norm()));
+      for (const scene::ArcFeature& a : v.arcs)
+        if (a.visible) drop_scores_.push_back(1e6f);
+    }
+  }
+  const double per_feature = rows_per_line_ * cost;
+  const long keep = std::max<long>(static_cast<long>(available_us / std::max(per_feature, 1e-9)), p_.min_lines);
+  if (keep >= static_cast<long>(drop_scores_.size())) return;
+  std::nth_element(drop_scores_.begin(), drop_scores_.end() - keep, drop_scores_.end());
+  const float threshold = *(drop_scores_.end() - keep);
+  long to_drop = static_cast<long>(drop_scores_.size()) - keep;
+  for (scene::Object& o : scene.objects()) {
+    for (scene::View& v : o.views) {
+      for (scene::LineFeature& f : v.lines) {
+        if (to_drop <= 0) break;
+        if (f.visible && !f.ambiguous && static_cast<float>((f.predicted.b - f.predicted.a).norm()) < threshold) {
+          f.dropped = true;
+          --to_drop;
+          ++report_.features_dropped;
+        }
+      }
+    }
+  }
+}
+
+int VisionCycle::track_features(const model::Model& model, scene::View& view, const scene::Camera& cam,
+                                const CameraImage& img, bool first_pass, int search_level) {
   const geometry::PinholeCamera& K = cam.intrinsics;
+  const image::ColourView* colour = img.colour.empty() ? nullptr : &img.colour;
+  auto& out = edgels_[view.camera];
   int found = 0;
   for (scene::LineFeature& f : view.lines) {
-    if (!f.visible || f.ambiguous) continue;
+    if (!f.visible || f.ambiguous || f.dropped) continue;
     // The first pass measures every feature: features not found in the last frame are searched
-    // in the wide window, found ones tracked in the narrow one. Later passes start from the fresh
-    // pose and measure again, in the narrow window, only what was missed or rejected: a found
-    // edge's line does not depend on where its window sat.
+    // in the wide window (wider still after bad frames), found ones tracked in the narrow one.
+    // Later passes start from the fresh pose and measure again, in the narrow window, only what
+    // was missed or rejected: a found edge's line does not depend on where its window sat.
     if (first_pass || f.retrack) {
-      const Eigen::Vector3d P1 = view.T_cam_obj * f.X1;
-      const Eigen::Vector3d P2 = view.T_cam_obj * f.X2;
-      f.predicted.a = K.project(P1);
-      f.predicted.b = K.project(P2);
-      const bool search = first_pass && f.status != scene::FeatureStatus::kFound;
-      features::LineTracker& t = search ? searcher_ : tracker_;
-      f.measurement = t.track(img, f.predicted, f.track);
+      f.predicted.a = K.project(view.T_cam_obj * f.X1);
+      f.predicted.b = K.project(view.T_cam_obj * f.X2);
+      const bool search = first_pass && (f.status != scene::FeatureStatus::kFound || search_level > 0);
+      features::LineTracker& t = search ? searchers_[std::min<std::size_t>(search_level, searchers_.size() - 1)]
+                                        : (degrade_level_ >= 1 ? reduced_tracker_ : tracker_);
+      f.measurement = t.track(img.grey, f.predicted, f.track, colour);
+      last_samples_ += t.params().rows;
       f.retrack = !f.measurement.found;
       if (f.measurement.found) {
         undistorted_line(K, f.measurement, t.last_inliers(), undistorted_, f.line_n1, f.line_n2);
-        auto& out = edgels_[view.camera];
         for (const Eigen::Vector2d& p : t.last_inliers())
           if (out.size() < out.capacity()) out.push_back(p);
       }
     }
     if (f.measurement.found) ++found;
   }
+  const Eigen::Matrix3d R = view.T_cam_obj.rotation();
+  for (scene::ArcFeature& a : view.arcs) {
+    if (!a.visible || a.dropped) continue;
+    if (first_pass || a.retrack) {
+      const model::CircleArc& arc = model.arcs()[a.arc];
+      const Eigen::Vector3d c_cam = view.T_cam_obj * arc.center;
+      const Eigen::Vector3d n_cam = R * arc.normal;
+      curve_.clear();
+      const int step = a.samples > samples_per_circle_ ? 2 : 1;  // budget: every other line
+      for (int k = 0; k < a.samples; k += step) {
+        const Eigen::Vector3d P = view.T_cam_obj * a.X[k];
+        const Eigen::Vector2d p = K.project(P);
+        // Tangent of the circle at X, projected: the normal of the image curve is across it.
+        const Eigen::Vector3d t3 = n_cam.cross(P - c_cam).normalized() * 1e-3;
+        const Eigen::Vector2d dt = K.project(P + t3) - K.project(P - t3);
+        if (dt.norm() < 1e-9) continue;
+        const Eigen::Vector2d nrm = Eigen::Vector2d(-dt.y(), dt.x()).normalized();
+        curve_.push_back(features::CurveSample{p, nrm});
+      }
+      const bool search = first_pass && (a.status != scene::FeatureStatus::kFound || search_level > 0);
+      features::EllipseTracker& t = search ? ellipse_searcher_ : (degrade_level_ >= 1 ? reduced_ellipse_tracker_ : ellipse_tracker_);
+      a.measurement = t.track(img.grey, curve_, a.track);
+      last_samples_ += static_cast<long>(curve_.size());
+      a.retrack = !a.measurement.found;
+      a.edges = 0;
+      if (a.measurement.found) {
+        for (const Eigen::Vector2d& p : t.last_inliers()) {
+          if (a.edges < scene::ArcFeature::kMaxSamples) a.edge_px[a.edges++] = p;
+          if (out.size() < out.capacity()) out.push_back(p);
+        }
+      }
+    }
+    if (a.measurement.found) ++found;
+  }
   return found;
 }
 
-void VisionCycle::process_view(scene::Object& obj, scene::View& view, const scene::Camera& cam,
-                               const image::ImageView& img, ObjectReport& rep) {
+void VisionCycle::collect_observations(const scene::Object& obj, scene::View& view, const scene::Camera& cam) {
   const model::Model& model = *obj.model;
   const geometry::PinholeCamera& K = cam.intrinsics;
-  const auto t0 = Clock::now();
-
-  // Predict: the view pose from the object pose (constant-pose prediction; a motion model
-  // plugs in here).
-  view.T_cam_obj = cam.T_ref_cam.inverse() * obj.T_ref_obj;
-
-  // Visibility and the visible part of every edge.
-  visibility_.update(model, view.T_cam_obj, K, view.face_visible, std::span(edge_vis_.data(), model.lines().size()));
-  for (scene::LineFeature& f : view.lines) {
-    const EdgeVisibility& ev = edge_vis_[f.edge];
-    f.visible = ev.visible;
-    f.grazing = ev.grazing;
-    if (!f.visible && !f.grazing) continue;
-    const Eigen::Vector3d A = model.line_point_a(f.edge), B = model.line_point_b(f.edge);
-    f.X1 = A + ev.s0 * (B - A);
-    f.X2 = A + ev.s1 * (B - A);
+  line_obs_.clear();
+  line_obs_feature_.clear();
+  for (std::size_t i = 0; i < view.lines.size(); ++i) {
+    const scene::LineFeature& f = view.lines[i];
+    if (!f.visible || f.ambiguous || f.dropped || !f.measurement.found) continue;
+    estimation::LineObservation o;
+    o.X1_obj = f.X1;
+    o.X2_obj = f.X2;
+    o.xn1 = f.line_n1;
+    o.xn2 = f.line_n2;
+    o.sigma_px = p_.line_sigma_px;
+    line_obs_.push_back(o);
+    line_obs_feature_.push_back(static_cast<std::uint32_t>(i));
   }
-  mark_ambiguous(view, cam);
+  line_inlier_.assign(line_obs_.size(), 1);
+
+  // Junctions (paper 3.3): where tracked edges meet at a model junction at a clear angle, their
+  // intersection (Foerstner: the intersection of the two measured image lines) is a point
+  // observation of the junction. Of several edges, the pair meeting at the largest angle is used.
+  point_obs_.clear();
+  if (p_.use_junctions) {
+    const double sin_min = std::sin(p_.junction_min_angle);
+    const auto& junctions = model.junctions();
+    for (std::size_t j = 0; j < junctions.size(); ++j) {
+      const model::Junction& J = junctions[j];
+      if (J.lines.size() < 2) continue;
+      double best_sin = sin_min;
+      Eigen::Vector3d best_l1, best_l2;
+      bool have = false;
+      for (std::size_t u = 0; u < J.lines.size(); ++u) {
+        const scene::LineFeature& f = view.lines[J.lines[u]];
+        if (!f.visible || f.ambiguous || f.dropped || !f.measurement.found) continue;
+        if ((f.X1 - J.p).squaredNorm() > 1e-12 && (f.X2 - J.p).squaredNorm() > 1e-12) continue;  // end hidden
+        const Eigen::Vector2d du = (f.line_n2 - f.line_n1).normalized();
+        for (std::size_t w = u + 1; w < J.lines.size(); ++w) {
+          const scene::LineFeature& g = view.lines[J.lines[w]];
+          if (!g.visible || g.ambiguous || g.dropped || !g.measurement.found) continue;
+          if ((g.X1 - J.p).squaredNorm() > 1e-12 && (g.X2 - J.p).squaredNorm() > 1e-12) continue;
+          const Eigen::Vector2d dw = (g.line_n2 - g.line_n1).normalized();
+          const double sn = std::abs(du.x() * dw.y() - du.y() * dw.x());
+          if (sn > best_sin) {
+            best_sin = sn;
+            best_l1 = line_through(f.line_n1, f.line_n2);
+            best_l2 = line_through(g.line_n1, g.line_n2);
+            have = true;
+          }
+        }
+      }
+      if (!have) continue;
+      const Eigen::Vector3d h = best_l1.cross(best_l2);
+      if (std::abs(h.z()) < 1e-12) continue;
+      const Eigen::Vector2d xn = h.head<2>() / h.z();
+      // The intersection must lie where the junction is predicted (else an edge is wrong).
+      const Eigen::Vector3d Pj = view.T_cam_obj * J.p;
+      if (Pj.z() <= 1e-6 || (K.normalized_to_pixel(xn) - K.project(Pj)).norm() > p_.search_half_width) continue;
+      estimation::PointObservation o;
+      o.X_obj = J.p;
+      o.xn = xn;
+      o.sigma_px = p_.line_sigma_px * p_.junction_sigma_scale / best_sin;
+      point_obs_.push_back(o);
+    }
+  }
+  point_inlier_.assign(point_obs_.size(), 1);
+
+  // Ellipse edge points: each one observes its model circle (paper 3.2, 5).
+  circle_obs_.clear();
+  circle_obs_feature_.clear();
+  for (std::size_t i = 0; i < view.arcs.size(); ++i) {
+    const scene::ArcFeature& a = view.arcs[i];
+    if (!a.visible || a.dropped || !a.measurement.found) continue;
+    const model::CircleArc& arc = model.arcs()[a.arc];
+    // At most circle_max_points evenly spread edge points per ellipse: they constrain the pose
+    // as well as all of them would, at a fraction of the solver's cost.
+    const int stride = std::max(1, (a.edges + p_.circle_max_points - 1) / std::max(1, p_.circle_max_points));
+    for (int k = 0; k < a.edges; k += stride) {
+      estimation::CircleObservation o;
+      o.center_obj = arc.center;
+      o.normal_obj = arc.normal;
+      o.radius = arc.radius;
+      o.xn = K.pixel_to_normalized(a.edge_px[k]);
+      o.sigma_px = p_.circle_sigma_px;
+      circle_obs_.push_back(o);
+      circle_obs_feature_.push_back(static_cast<std::uint32_t>(i));
+    }
+  }
+  circle_inlier_.assign(circle_obs_.size(), 1);
+}
+
+void VisionCycle::process_view(scene::Object& obj, scene::View& view, const scene::Camera& cam,
+                               const CameraImage& img, ObjectReport& rep) {
+  const geometry::PinholeCamera& K = cam.intrinsics;
   int visible = 0;
-  for (const scene::LineFeature& f : view.lines) visible += f.visible && !f.ambiguous ? 1 : 0;
-  const auto t1 = Clock::now();
-  report_.visibility_ms += ms_between(t0, t1);
+  for (const scene::LineFeature& f : view.lines) visible += f.visible && !f.ambiguous && !f.dropped ? 1 : 0;
+  for (const scene::ArcFeature& a : view.arcs) visible += a.visible && !a.dropped ? 1 : 0;
 
   solver_.params() = p_.solver;
   solver_.params().focal_px = K.focal();
@@ -189,43 +481,47 @@ void VisionCycle::process_view(scene::Object& obj, scene::View& view, const scen
   int found = 0;
   const int passes = std::max(1, p_.refine_passes);
   for (int pass = 0; pass < passes; ++pass) {
-    const auto ta = Clock::now();
-    found = track_features(view, cam, img, pass == 0);
-    const auto tb = Clock::now();
+    const auto ta = now_();
+    found = track_features(*obj.model, view, cam, img, pass == 0, rep.search_level);
+    const auto tb = now_();
     report_.track_ms += ms_between(ta, tb);
 
-    line_obs_.clear();
-    line_obs_feature_.clear();
-    for (std::size_t i = 0; i < view.lines.size(); ++i) {
-      const scene::LineFeature& f = view.lines[i];
-      if (!f.visible || f.ambiguous || !f.measurement.found) continue;
-      estimation::LineObservation o;
-      o.X1_obj = f.X1;
-      o.X2_obj = f.X2;
-      o.xn1 = f.line_n1;
-      o.xn2 = f.line_n2;
-      o.sigma_px = p_.line_sigma_px;
-      line_obs_.push_back(o);
-      line_obs_feature_.push_back(static_cast<std::uint32_t>(i));
-    }
-    line_inlier_.assign(line_obs_.size(), 1);
-    if (static_cast<int>(line_obs_.size()) >= p_.min_lines) {
-      result = solver_.solve(view.T_cam_obj, {}, line_obs_, {}, line_inlier_);
+    collect_observations(obj, view, cam);
+    const int n_obs = static_cast<int>(line_obs_.size() + point_obs_.size() + circle_obs_.size() / 4);
+    if (n_obs >= p_.min_lines) {
+      estimation::ObservationSet obs;
+      obs.points = point_obs_;
+      obs.lines = line_obs_;
+      obs.circles = circle_obs_;
+      estimation::InlierFlags flags;
+      flags.points = point_inlier_;
+      flags.lines = line_inlier_;
+      flags.circles = circle_inlier_;
+      result = solver_.solve(view.T_cam_obj, obs, flags);
       if (result.ok() && result.inliers >= p_.min_lines) {
         view.T_cam_obj = result.T_cam_obj;
         updated = true;
       }
       for (std::size_t k = 0; k < line_obs_feature_.size(); ++k)
         if (!line_inlier_[k]) view.lines[line_obs_feature_[k]].retrack = true;
+      // An ellipse with many rejected edge points is measured again.
+      for (std::size_t k = 0, start = 0; k <= circle_obs_feature_.size(); ++k) {
+        if (k < circle_obs_feature_.size() && circle_obs_feature_[k] == circle_obs_feature_[start]) continue;
+        if (k > start) {
+          int bad = 0;
+          for (std::size_t q = start; q < k; ++q) bad += circle_inlier_[q] ? 0 : 1;
+          if (2 * bad > static_cast<int>(k - start)) view.arcs[circle_obs_feature_[start]].retrack = true;
+        }
+        start = k;
+      }
     }
-    report_.solve_ms += ms_between(tb, Clock::now());
+    report_.solve_ms += ms_between(tb, now_());
     if (!updated) break;
   }
 
   // Feature states after the last pass.
   int outliers = 0;
-  for (scene::LineFeature& f : view.lines) {
-    if (!f.visible || f.ambiguous) continue;
+  auto settle = [](auto& f) {
     if (f.measurement.found) {
       f.status = scene::FeatureStatus::kFound;
       f.frames_missing = 0;
@@ -233,84 +529,178 @@ void VisionCycle::process_view(scene::Object& obj, scene::View& view, const scen
       if (f.status != scene::FeatureStatus::kNotFound) f.status = scene::FeatureStatus::kLost;
       if (++f.frames_missing >= 2) f.track.polarity = 0;  // the background may have changed side
     }
-  }
+  };
+  for (scene::LineFeature& f : view.lines)
+    if (f.visible && !f.ambiguous && !f.dropped) settle(f);
+  for (scene::ArcFeature& a : view.arcs)
+    if (a.visible && !a.dropped) settle(a);
+  int lines_used = 0, circle_used = 0, junctions_used = 0;
   for (std::size_t k = 0; k < line_obs_feature_.size(); ++k) {
-    if (line_inlier_[k]) continue;
+    if (line_inlier_[k]) {
+      ++lines_used;
+      continue;
+    }
     scene::LineFeature& f = view.lines[line_obs_feature_[k]];
     f.status = scene::FeatureStatus::kOutlier;
     f.track.polarity = 0;
     ++outliers;
+  }
+  for (std::uint8_t in : circle_inlier_) {
+    circle_used += in;
+    outliers += 1 - in;
+  }
+  for (std::uint8_t in : point_inlier_) {
+    junctions_used += in;
+    outliers += 1 - in;
   }
   view.pose = result;
   if (!updated) view.pose.status = result.ok() ? estimation::SolveStatus::kTooFewObservations : result.status;
 
   rep.features_visible += visible;
   rep.features_found += found;
-  rep.features_used += updated ? result.inliers : 0;
-  rep.outliers += updated ? outliers : 0;
-  rep.rms_px = updated ? result.rms_px : 0.0;
+  if (updated) {
+    rep.features_used += result.inliers;
+    rep.lines_used += lines_used;
+    rep.circle_points_used += circle_used;
+    rep.junctions_used += junctions_used;
+    rep.outliers += outliers;
+    rep.rms_px = result.rms_px;
+  }
   rep.iterations += result.iterations;
 }
 
-const CycleReport& VisionCycle::process(scene::Scene& scene, std::span<const image::ImageView> images) {
-  const auto t0 = Clock::now();
-  prepare(scene);
-  report_.frame = frame_++;
-  report_.visibility_ms = report_.track_ms = report_.solve_ms = 0.0;
-  for (auto& e : edgels_) e.clear();
+void VisionCycle::fuse_and_filter(scene::Scene& scene, scene::Object& obj, ObjectReport& rep, double stamp_s) {
+  // Fuse the view poses into the object pose: information-weighted mean in the tangent space of
+  // the first good view (one view: its pose, moved into the reference frame).
+  geometry::SE3 T0_ref;
+  geometry::Matrix6d info_sum = geometry::Matrix6d::Zero();
+  geometry::Vector6d info_xi = geometry::Vector6d::Zero();
+  int good = 0;
+  for (const scene::View& view : obj.views) {
+    if (!view.pose.ok()) continue;
+    const scene::Camera& cam = scene.cameras()[view.camera];
+    const geometry::SE3 T_ref = cam.T_ref_cam * view.T_cam_obj;
+    const geometry::Matrix6d Ad = adjoint(cam.T_ref_cam);
+    const geometry::Matrix6d cov = Ad * view.pose.covariance * Ad.transpose();
+    if (good == 0) T0_ref = T_ref;
+    const geometry::Matrix6d info = (cov + 1e-18 * geometry::Matrix6d::Identity()).inverse();
+    info_sum += info;
+    info_xi += info * (T_ref * T0_ref.inverse()).log();
+    ++good;
+  }
+  const double dt = obj.last_stamp >= 0.0 ? std::max(0.0, stamp_s - obj.last_stamp) : 0.0;
+  obj.last_stamp = stamp_s;
+  double ratio = rep.features_visible > 0 ? static_cast<double>(rep.lines_used + rep.junctions_used / 2 +
+                                                                 (rep.circle_points_used > 0 ? 1 : 0)) /
+                                                rep.features_visible
+                                          : 0.0;
+  ratio = std::clamp(ratio, 0.0, 1.0);
+  const double quality = good > 0 ? ratio / (1.0 + (rep.rms_px / 1.5) * (rep.rms_px / 1.5)) : 0.0;
+  bool accept = good > 0 && quality >= p_.recovery.lost_quality;
+  geometry::SE3 T_meas;
+  geometry::Matrix6d cov_meas = geometry::Matrix6d::Zero();
+  if (accept) {
+    cov_meas = info_sum.inverse();
+    T_meas = geometry::SE3::exp(cov_meas * info_xi) * T0_ref;
+  }
+  if (p_.use_filter) {
+    obj.filter.predict(dt);
+    if (accept) {
+      // A floor on the measurement covariance keeps the filter from trusting a pose more than the
+      // renderer-free reality of a camera allows (0.1 mm, 0.02 degrees).
+      geometry::Matrix6d floor = geometry::Matrix6d::Zero();
+      floor.diagonal() << 1e-8, 1e-8, 1e-8, 1e-7, 1e-7, 1e-7;
+      const double chi2 = obj.filter.update(T_meas, cov_meas + floor);
+      if (ratio < p_.degraded_ratio && chi2 > p_.recovery.gate_chi2) {
+        accept = false;  // a weak measurement far from the prediction: more likely wrong than right
+        rep.measurement_rejected = true;
+      }
+    }
+  }
+  if (accept) {
+    obj.T_ref_obj = T_meas;
+    obj.covariance = cov_meas;
+    obj.quality = quality;
+    obj.status = ratio >= p_.degraded_ratio ? scene::TrackStatus::kTracking : scene::TrackStatus::kDegraded;
+  } else {
+    // No usable measurement: hold the prediction (the filter's, which does not run away: its
+    // velocity is dropped after a few bad frames) and search wider next time.
+    obj.T_ref_obj = obj.T_pred;
+    obj.quality = 0.0;
+    obj.status = scene::TrackStatus::kLost;
+  }
+  obj.bad_frames = obj.status == scene::TrackStatus::kTracking ? 0 : obj.bad_frames + 1;
+  if (p_.use_filter) {
+    if (!accept && obj.bad_frames >= p_.recovery.reset_velocity_after) {
+      geometry::Matrix6d cov = geometry::Matrix6d::Zero();
+      cov.diagonal() << 1e-4, 1e-4, 1e-4, 1e-3, 1e-3, 1e-3;
+      obj.filter.reset(obj.T_ref_obj, cov);
+    }
+    obj.T_ref_obj_filtered = obj.filter.pose();
+    obj.velocity = obj.filter.velocity();
+  } else {
+    obj.T_ref_obj_filtered = obj.T_ref_obj;
+    obj.velocity.setZero();
+  }
+  rep.status = obj.status;
+  rep.quality = obj.quality;
+}
 
+const CycleReport& VisionCycle::process(scene::Scene& scene, std::span<const CameraImage> images, double stamp_s) {
+  const auto t0 = now_();
+  prepare(scene);
+  if (stamp_s < 0.0) stamp_s = static_cast<double>(frame_) * p_.frame_interval_s;
+  report_.frame = frame_++;
+  report_.stamp_s = stamp_s;
+  report_.visibility_ms = report_.track_ms = report_.solve_ms = 0.0;
+  last_samples_ = 0;
+  for (auto& e : edgels_) e.clear();
   auto& objects = scene.objects();
+
+  // 1. Predict every object and decide what each view can see.
   for (std::size_t oi = 0; oi < objects.size(); ++oi) {
     scene::Object& obj = objects[oi];
     ObjectReport& rep = report_.objects[oi];
     rep = ObjectReport{};
     if (obj.status == scene::TrackStatus::kUninitialised) continue;
-
+    rep.search_level = std::min(obj.bad_frames, p_.recovery.max_search_level);
+    const double dt = obj.last_stamp >= 0.0 ? std::max(0.0, stamp_s - obj.last_stamp) : 0.0;
+    obj.T_pred = p_.use_filter && obj.filter.initialised() && obj.bad_frames == 0 ? obj.filter.predict_pose(dt) : obj.T_ref_obj;
     for (scene::View& view : obj.views) {
-      if (view.camera >= images.size() || images[view.camera].empty()) continue;
+      if (view.camera >= images.size() || images[view.camera].grey.empty()) continue;
+      predict_view(obj, view, scene.cameras()[view.camera]);
+    }
+  }
+  const auto t1 = now_();
+  report_.visibility_ms = ms_between(t0, t1);
+
+  // 2. Keep the time budget: fewer samples, then fewer features.
+  plan_budget(scene);
+
+  // 3. Measure and solve every view; 4. fuse views and filter.
+  for (std::size_t oi = 0; oi < objects.size(); ++oi) {
+    scene::Object& obj = objects[oi];
+    ObjectReport& rep = report_.objects[oi];
+    if (obj.status == scene::TrackStatus::kUninitialised) continue;
+    for (scene::View& view : obj.views) {
+      if (view.camera >= images.size() || images[view.camera].grey.empty()) {
+        view.pose.status = estimation::SolveStatus::kTooFewObservations;
+        continue;
+      }
       process_view(obj, view, scene.cameras()[view.camera], images[view.camera], rep);
     }
-
-    // Fuse the view poses into the object pose: information-weighted mean in the tangent space
-    // of the first good view (one view: its pose, moved into the reference frame).
-    const auto tf = Clock::now();
-    const geometry::SE3* T0 = nullptr;
-    geometry::SE3 T0_ref;
-    geometry::Matrix6d info_sum = geometry::Matrix6d::Zero();
-    geometry::Vector6d info_xi = geometry::Vector6d::Zero();
-    int good = 0;
-    for (const scene::View& view : obj.views) {
-      if (!view.pose.ok()) continue;
-      const scene::Camera& cam = scene.cameras()[view.camera];
-      const geometry::SE3 T_ref = cam.T_ref_cam * view.T_cam_obj;
-      const geometry::Matrix6d Ad = adjoint(cam.T_ref_cam);
-      const geometry::Matrix6d cov = Ad * view.pose.covariance * Ad.transpose();
-      if (!T0) {
-        T0_ref = T_ref;
-        T0 = &T0_ref;
-      }
-      const geometry::Matrix6d info = (cov + 1e-18 * geometry::Matrix6d::Identity()).inverse();
-      info_sum += info;
-      info_xi += info * (T_ref * T0_ref.inverse()).log();
-      ++good;
-    }
-    if (good > 0) {
-      const geometry::Matrix6d cov = info_sum.inverse();
-      obj.T_ref_obj = geometry::SE3::exp(cov * info_xi) * T0_ref;
-      obj.covariance = cov;
-      const double ratio = rep.features_visible > 0 ? static_cast<double>(rep.features_used) / rep.features_visible : 0.0;
-      obj.quality = std::clamp(ratio, 0.0, 1.0) / (1.0 + (rep.rms_px / 1.5) * (rep.rms_px / 1.5));
-      obj.status = ratio >= p_.degraded_ratio ? scene::TrackStatus::kTracking : scene::TrackStatus::kDegraded;
-    } else {
-      obj.quality = 0.0;
-      obj.status = scene::TrackStatus::kLost;
-    }
-    rep.status = obj.status;
-    rep.quality = obj.quality;
-    report_.solve_ms += ms_between(tf, Clock::now());
-
+    const auto tf = now_();
+    fuse_and_filter(scene, obj, rep, stamp_s);
+    report_.solve_ms += ms_between(tf, now_());
   }
-  report_.cycle_ms = ms_between(t0, Clock::now());
+
+  // Learn the cost of a sample for the next budget decision.
+  if (p_.budget.adapt && last_samples_ > 0 && report_.track_ms > 0.0) {
+    const double measured = report_.track_ms * 1000.0 / static_cast<double>(last_samples_);
+    p_.budget.cost_per_sample_us = 0.8 * p_.budget.cost_per_sample_us + 0.2 * measured;
+  }
+  report_.cycle_ms = ms_between(t0, now_());
+  if (p_.budget.cycle_ms > 0.0 && report_.cycle_ms > p_.budget.cycle_ms) ++report_.overruns;
   return report_;
 }
 

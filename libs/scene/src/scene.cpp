@@ -20,6 +20,8 @@ View Scene::make_view(std::size_t camera, const model::Model& model) {
   v.camera = camera;
   v.lines.resize(model.lines().size());
   for (std::size_t i = 0; i < v.lines.size(); ++i) v.lines[i].edge = static_cast<model::Index>(i);
+  v.arcs.resize(model.arcs().size());
+  for (std::size_t i = 0; i < v.arcs.size(); ++i) v.arcs[i].arc = static_cast<model::Index>(i);
   v.face_visible.assign(model.faces().size(), 0);
   return v;
 }
@@ -45,13 +47,25 @@ Expected<std::size_t> Scene::add_object(std::string name, std::shared_ptr<const 
 void Scene::set_pose(std::size_t object, const geometry::SE3& T_ref_obj) {
   Object& o = objects_.at(object);
   o.T_ref_obj = T_ref_obj;
+  o.T_ref_obj_filtered = T_ref_obj;
+  o.velocity.setZero();
   o.status = TrackStatus::kTracking;
+  o.bad_frames = 0;
+  o.last_stamp = -1.0;
+  geometry::Matrix6d cov = geometry::Matrix6d::Zero();
+  cov.diagonal() << 1e-4, 1e-4, 1e-4, 1e-3, 1e-3, 1e-3;  // 1 cm, 1.8 degrees: a hint, not a measurement
+  o.filter.reset(T_ref_obj, cov);
   for (View& v : o.views) {
     v.T_cam_obj = cameras_[v.camera].T_ref_cam.inverse() * T_ref_obj;
     for (LineFeature& f : v.lines) {
       f.status = FeatureStatus::kNotFound;
       f.track = {};
       f.frames_missing = 0;
+    }
+    for (ArcFeature& a : v.arcs) {
+      a.status = FeatureStatus::kNotFound;
+      a.track = {};
+      a.frames_missing = 0;
     }
   }
 }

@@ -29,8 +29,57 @@ struct LineObservation {
   double sigma_px = 1.0;  ///< a-priori noise of the line position across, pixels
 };
 
+/// \brief A 3-D point measured in the camera frame (stereo, range sensor) matched to a model
+/// point. Discrepancy: T * X_obj - P_cam (3 components, metres).
+struct Point3Observation {
+  Eigen::Vector3d X_obj = Eigen::Vector3d::Zero();  ///< model point, object frame, metres
+  Eigen::Vector3d P_cam = Eigen::Vector3d::Zero();  ///< measured point, camera frame, metres
+  double sigma_m = 0.002;                           ///< a-priori noise per coordinate, metres
+};
+
+/// \brief The measured surface normal of a model region (e.g. from a fitted plane). Discrepancy:
+/// R * n_obj - n_cam by its two components perpendicular to n_cam (radians); rotation only.
+struct NormalObservation {
+  Eigen::Vector3d n_obj = Eigen::Vector3d::UnitZ();  ///< region normal, object frame (normalised by the solver)
+  Eigen::Vector3d n_cam = Eigen::Vector3d::UnitZ();  ///< measured normal, camera frame (normalised by the solver)
+  double sigma_rad = 0.02;                           ///< a-priori noise per component, radians
+};
+
+/// \brief One edge point on the image (an ellipse) of a model circle. Discrepancy in object
+/// space: the line of sight through xn meets the circle's plane (camera frame) at X; the residual
+/// is |X - centre| - radius (metres), weighted with sigma_px * depth / focal_px times the
+/// obliqueness gain of the plane to the ray (see normalised_circle_residual). A ray parallel to
+/// the plane or meeting it behind the camera makes the observation unusable at that pose: it is
+/// then treated as an outlier.
+struct CircleObservation {
+  Eigen::Vector3d center_obj = Eigen::Vector3d::Zero();    ///< circle centre, object frame, metres
+  Eigen::Vector3d normal_obj = Eigen::Vector3d::UnitZ();   ///< axis of the circle, object frame (normalised by the solver)
+  double radius = 0.0;                                     ///< metres, > 0
+  Eigen::Vector2d xn = Eigen::Vector2d::Zero();            ///< edge point, undistorted normalised image coordinates
+  double sigma_px = 1.0;                                   ///< a-priori image noise of the edge point, pixels
+};
+
+/// \brief All observations of one solve, by type (any span may be empty).
+struct ObservationSet {
+  std::span<const PointObservation> points;
+  std::span<const LineObservation> lines;
+  std::span<const CircleObservation> circles;
+  std::span<const Point3Observation> points3d;
+  std::span<const NormalObservation> normals;
+};
+
+/// \brief Optional per-observation inlier outputs of a solve, one span per type of
+/// ObservationSet. A span whose size differs from its observation span is left untouched.
+struct InlierFlags {
+  std::span<std::uint8_t> points, lines, circles, points3d, normals;
+};
+
 /// \brief Settings of PoseSolver. Sigmas and thresholds are in units of the observations' a-priori
-/// sigma unless stated otherwise.
+/// sigma unless stated otherwise. Observations with 1, 2 or 3 scalar residuals (circle edge
+/// points; 2-D points, lines, normals; 3-D points) are tested on one scale: each observation's
+/// chi-square value with m degrees of freedom is mapped to the RMS of a 2-residual observation
+/// with the same tail probability (the identity for m = 2), so a threshold has the same
+/// false-alarm rate for every type (3.5: p = 4.8e-6).
 struct PoseSolverParams {
   double focal_px = 500.0;     ///< converts pixel sigmas to normalised units (set from the camera)
   int max_iterations = 15;     ///< Gauss-Newton iterations per solve
@@ -73,9 +122,9 @@ struct PoseResult {
   geometry::Matrix6d covariance = geometry::Matrix6d::Zero();  ///< of the left tangent (v, w): m^2, rad^2
   SolveStatus status = SolveStatus::kTooFewObservations;
   int iterations = 0;       ///< Gauss-Newton iterations in all rounds
-  int observations = 0;     ///< points + lines given
+  int observations = 0;     ///< observations given, all types
   int inliers = 0;          ///< observations kept after outlier removal
-  double rms_px = 0.0;      ///< RMS residual of the inliers, converted to pixels
+  double rms_px = 0.0;      ///< RMS residual of the image inliers (2-D points, lines, circles), in pixels
   double sigma0 = 1.0;      ///< a-posteriori standard deviation of unit weight
   double noise_scale = 1.0;  ///< noise scale found by the robust pass (units of a-priori sigma; 1 without it)
   int outlier_rounds = 0;   ///< observations removed by the remove-largest loop (after the robust pass)
@@ -84,7 +133,8 @@ struct PoseResult {
 };
 
 /// \brief Object-space least-squares pose (Wunsch 1997, paper section 5): Gauss-Newton on SE(3)
-/// with left updates, residuals weighted by their a-priori sigma converted to object space at the
+/// with left updates over 2-D points, lines, circle edge points, 3-D points and surface normals
+/// in one adjustment, residuals weighted by their a-priori sigma converted to object space at the
 /// point's depth, a 6x6 covariance as accuracy estimate, and outlier detection that removes the
 /// observation with the largest normalised residual and solves again until no gross error is
 /// left. Buffers grow only when more observations arrive than ever before (reserve() up front to
@@ -92,58 +142,96 @@ struct PoseResult {
 class PoseSolver {
  public:
   explicit PoseSolver(const PoseSolverParams& params = {}) : p_(params) {}
-  void reserve(std::size_t points, std::size_t lines);
+  /// Grow the work buffers for up to this many observations of each type.
+  void reserve(std::size_t points, std::size_t lines, std::size_t circles = 0, std::size_t points3d = 0,
+               std::size_t normals = 0);
   PoseSolverParams& params() { return p_; }
 
-  /// Solve from `T_init`. `point_inlier` / `line_inlier`, when non-empty, must have the sizes of
-  /// the observation spans and receive 1 for kept and 0 for rejected observations (spans of any
-  /// other size are left untouched). Invalid observations (non-finite values, sigma_px <= 0, two
-  /// coincident line points) are rejected up front and flagged 0. Status: kTooFewObservations
-  /// below min_observations valid observations or 6 scalar residuals, kDegenerate for a
-  /// rank-deficient normal matrix (e.g. all points identical) or focal_px <= 0, kDiverged for a
-  /// non-finite T_init or step or a final pose with observed points at or behind the camera. On
-  /// failure T_cam_obj is T_init and the covariance zero.
+  /// Solve from `T_init` with every type of observation in one adjustment. Flags (see
+  /// InlierFlags) receive 1 for kept and 0 for rejected observations. Invalid observations
+  /// (non-finite values, sigma <= 0, two coincident line points, zero normals, radius <= 0) are
+  /// rejected up front and flagged 0. Status: kTooFewObservations below min_observations valid
+  /// observations or 6 scalar residuals, kDegenerate for a rank-deficient normal matrix (e.g.
+  /// all points identical, a single circle: rotation about its axis, normals only: translation)
+  /// or focal_px <= 0, kDiverged for a non-finite T_init or step or a final pose with observed
+  /// 2-D points or line points at or behind the camera. On failure T_cam_obj is T_init and the
+  /// covariance zero. Circle edge points and normals that are unusable at the final pose (see
+  /// CircleObservation, normalised_normal_residual) are flagged 0.
   ///
   /// Flow: optional robust pass (see PoseSolverParams::robust_init), then plain weighted least
   /// squares removing the active observation with the largest standardised residual (residual
-  /// over its own standard deviation, I - J H^-1 J^T; for the two scalar residuals of one
-  /// observation the RMS) while it exceeds the threshold; once, rejected observations whose
-  /// prediction error is within the threshold are re-admitted and the loop repeats.
+  /// over its own standard deviation, I - J H^-1 J^T; for observations with m scalar residuals
+  /// the chi-square value r^T Q^-1 r mapped to the common scale, see PoseSolverParams) while it
+  /// exceeds the threshold; once, rejected observations whose prediction error is within the
+  /// threshold are re-admitted and the loop repeats.
+  PoseResult solve(const geometry::SE3& T_init, const ObservationSet& obs, const InlierFlags& flags = {});
+
+  /// 2-D points and lines only (the original interface); same as solve(T_init, {points, lines},
+  /// {point_inlier, line_inlier}).
   PoseResult solve(const geometry::SE3& T_init, std::span<const PointObservation> points,
                    std::span<const LineObservation> lines, std::span<std::uint8_t> point_inlier = {},
                    std::span<std::uint8_t> line_inlier = {});
 
  private:
   /// Sums of one linearisation in normalised (sigma) units: H = sum rho J^T J, g = sum rho J^T r.
-  struct Normal {
+  struct NormalEquations {
     geometry::Matrix6d H = geometry::Matrix6d::Zero();
     geometry::Vector6d g = geometry::Vector6d::Zero();
     double chi2 = 0.0;      ///< sum of squared normalised residuals (unweighted by rho)
-    double sum_sq_px = 0.0; ///< sum of squared residuals converted to pixels
+    double weighted_chi2 = 0.0;  ///< sum of rho times squared normalised residuals
+    /// weighted_chi2 with the point and line weights of the reference linearisation (depths in
+    /// depth_ref_): the objective the step from there minimised.
+    double frozen_chi2 = 0.0;
+    double sum_sq_px = 0.0; ///< sum of squared image residuals converted to pixels
     int residuals = 0;      ///< scalar residuals accumulated
-    int behind = 0;         ///< active observation points at or behind the camera
+    int image_residuals = 0;  ///< of which from 2-D points, lines and circles
+    int behind = 0;         ///< active 2-D points / line points at or behind the camera
+    int unusable = 0;       ///< active circle points / normals that cannot be evaluated at this pose
   };
+  /// One evaluated observation: m scalar residuals (rows beyond m are zero).
+  struct Eval {
+    Eigen::Vector3d rw = Eigen::Vector3d::Zero();  ///< normalised residuals
+    Eigen::Matrix<double, 3, 6> Jw;                ///< normalised Jacobian (when requested)
+    int m = 0;               ///< scalar residuals (0: unusable at this pose)
+    double sigma_px = 0.0;   ///< a-priori pixel sigma of image observations, 0 otherwise
+    bool behind = false;     ///< a 2-D point or line point at or behind the camera
+    Eigen::Vector2d depth = Eigen::Vector2d::Ones();  ///< depths (m, clamped) behind the weights of points / lines
+  };
+  enum class Kind : std::uint8_t { kPoint, kLine, kCircle, kPoint3, kNormal };
   enum class Statistic : std::uint8_t { kPlain, kStandardised };
 
-  void prepare(std::span<const PointObservation> points, std::span<const LineObservation> lines);
-  Normal linearise(const geometry::SE3& T, std::span<const PointObservation> points,
-                   std::span<const LineObservation> lines, bool robust) const;
-  SolveStatus gauss_newton(geometry::SE3& T, std::span<const PointObservation> points,
-                           std::span<const LineObservation> lines, bool robust, int max_iterations, int& iterations,
-                           bool& converged, Normal& last);
+  void prepare(const ObservationSet& obs);
+  void locate(std::size_t slot, Kind& kind, std::size_t& index) const;
+  void evaluate(const ObservationSet& obs, std::size_t slot, const geometry::SE3& T, const Eigen::Matrix3d& R,
+                bool jacobian, Eval& e) const;
+  NormalEquations linearise(const geometry::SE3& T, const ObservationSet& obs, bool robust);
+  SolveStatus gauss_newton(geometry::SE3& T, const ObservationSet& obs, bool robust, int max_iterations,
+                           int& iterations, bool& converged, NormalEquations& last);
   void update_robust_weights(double scale);
-  void statistics(const geometry::SE3& T, const geometry::Matrix6d& H_inv, std::span<const PointObservation> points,
-                  std::span<const LineObservation> lines, Statistic kind);
+  /// Per-observation chi2_ / dims_; returns the rho-weighted frozen-weight objective (kPlain).
+  double statistics(const geometry::SE3& T, const geometry::Matrix6d& H_inv, const ObservationSet& obs,
+                    Statistic kind);
+  double stat(std::size_t slot, double scale) const;
   double quantile_scale();
   int count_active() const;
 
   PoseSolverParams p_;
-  std::vector<std::uint8_t> active_pts_, active_lines_;  ///< 1 active, 0 rejected, 2 invalid input
+  // Per observation "slot": points, then lines, circles, 3-D points, normals.
+  std::size_t end_points_ = 0, end_lines_ = 0, end_circles_ = 0, end_points3d_ = 0, end_normals_ = 0;
+  std::vector<std::uint8_t> active_;  ///< 1 active, 0 rejected, 2 invalid input
+  std::vector<std::uint8_t> dims_;    ///< scalar residuals of the slot's last statistic (0: unusable)
+  std::vector<double> rho_;           ///< IRLS weights
+  std::vector<double> chi2_;          ///< per-slot quadratic form of the last statistic (units of sigma^2)
+  std::vector<double> scratch_;       ///< quantile work buffer
+  /// Depths behind the point / line weights of the last accepted linearisation, and of the latest
+  /// (trial) one; Gauss-Newton steps are accepted on the objective with the weights frozen.
+  std::vector<Eigen::Vector2d> depth_ref_, depth_trial_;
+  // Per-type caches.
   std::vector<RayBasis> point_bases_;
   std::vector<Eigen::Vector3d> line_normals_;
-  std::vector<double> rho_pts_, rho_lines_;    ///< IRLS weights
-  std::vector<double> stat_pts_, stat_lines_;  ///< per-observation test statistic, units of sigma
-  std::vector<double> scratch_;                ///< median work buffer
+  std::vector<Eigen::Vector3d> circle_axes_;      ///< unit circle axes, object frame
+  std::vector<DirectionBasis> normal_bases_;      ///< around the measured normals, camera frame
+  std::vector<Eigen::Vector3d> normal_objs_;      ///< unit model normals, object frame
 };
 
 }  // namespace v4r::estimation

@@ -7,6 +7,7 @@
 #include <opencv2/core.hpp>
 
 #include "v4r/core/expected.hpp"
+#include "v4r/image/colour_view.hpp"
 #include "v4r/image/image_view.hpp"
 
 namespace v4r::io {
@@ -32,6 +33,12 @@ class FrameSource {
 /// View of an 8-bit single-channel cv::Mat (no copy; the Mat must outlive the view).
 inline image::ImageView as_view(const cv::Mat& grey) {
   return image::ImageView{grey.ptr<std::uint8_t>(0), grey.cols, grey.rows, static_cast<int>(grey.step[0])};
+}
+
+/// View of an 8-bit 3-channel BGR cv::Mat (no copy), or an empty view for any other type.
+inline image::ColourView as_colour_view(const cv::Mat& bgr) {
+  if (bgr.empty() || bgr.type() != CV_8UC3) return {};
+  return image::ColourView{bgr.ptr<std::uint8_t>(0), bgr.cols, bgr.rows, static_cast<int>(bgr.step[0])};
 }
 
 }  // namespace v4r::io

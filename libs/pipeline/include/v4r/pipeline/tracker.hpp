@@ -9,11 +9,15 @@ namespace v4r::pipeline {
 
 /// \brief The result of one frame for the tracked object.
 struct FrameResult {
-  geometry::SE3 T_cam_obj;
+  geometry::SE3 T_cam_obj;           ///< measured pose (or the prediction when lost)
+  geometry::SE3 T_cam_obj_filtered;  ///< EKF output
+  geometry::Vector6d velocity = geometry::Vector6d::Zero();  ///< EKF velocity (v, w): m/s, rad/s
   geometry::Matrix6d covariance = geometry::Matrix6d::Zero();
   ObjectReport report;
   double cycle_ms = 0.0;
   double visibility_ms = 0.0, track_ms = 0.0, solve_ms = 0.0;
+  int degrade_level = 0;
+  std::int64_t overruns = 0;
 };
 
 /// \brief Convenience front end for the common case of one object seen by one camera whose
@@ -24,8 +28,9 @@ class SingleObjectTracker {
                       const CycleParams& params = {});
   /// Sets the object pose (T_cam_obj) and (re)starts tracking from it.
   void set_pose(const geometry::SE3& T_cam_obj);
-  /// Runs one vision cycle on an 8-bit grey image of the camera.
-  FrameResult track(const image::ImageView& grey);
+  /// Runs one vision cycle on an 8-bit grey image (and optionally the BGR colour image) of the
+  /// camera taken at `stamp_s` seconds (negative: frames are frame_interval_s apart).
+  FrameResult track(const image::ImageView& grey, const image::ColourView& colour = {}, double stamp_s = -1.0);
 
   scene::Scene& scene() { return scene_; }
   VisionCycle& cycle() { return cycle_; }

@@ -48,6 +48,11 @@ class VisibilityTester {
   void update(const model::Model& model, const geometry::SE3& T_cam_obj, const geometry::PinholeCamera& cam,
               std::span<std::uint8_t> face_visible, std::span<EdgeVisibility> out);
 
+  /// After update(): whether a point of the model (camera frame) is hidden by a face other than
+  /// `face_a` / `face_b` or by one of the model's cylinders (solids: side and caps).
+  [[nodiscard]] bool hidden(const Eigen::Vector3d& p_cam, model::Index face_a = model::kNone,
+                            model::Index face_b = model::kNone) const;
+
  private:
   struct FaceCache {
     Eigen::Vector3d n_cam;  // plane normal, camera frame
@@ -59,7 +64,13 @@ class VisibilityTester {
   bool occluded(const Eigen::Vector3d& p_cam, model::Index face_a, model::Index face_b) const;
 
   VisibilityParams p_;
+  struct CylinderCache {
+    Eigen::Vector3d p1, axis;  // camera frame; axis unit from p1 to p2
+    double length = 0.0, radius = 0.0;
+  };
+  bool hidden_by_cylinder(const Eigen::Vector3d& p_cam) const;
   std::vector<FaceCache> faces_;
+  std::vector<CylinderCache> cylinders_;
   std::vector<Eigen::Vector2d> poly_;
   std::vector<std::uint8_t> sample_ok_;
   std::vector<std::uint8_t> grazing_;  // per face: hidden but seen at a grazing angle

@@ -5,27 +5,65 @@
 #include <span>
 #include <vector>
 
+#include "v4r/core/clock.hpp"
 #include "v4r/estimation/pose_solver.hpp"
+#include "v4r/features/ellipse_tracker.hpp"
 #include "v4r/features/line_tracker.hpp"
+#include "v4r/filter/pose_filter.hpp"
+#include "v4r/image/colour_view.hpp"
 #include "v4r/image/image_view.hpp"
 #include "v4r/pipeline/visibility.hpp"
 #include "v4r/scene/scene.hpp"
 
 namespace v4r::pipeline {
 
-/// \brief Every parameter of the vision cycle, with defaults in code (units in the names' docs).
+/// \brief Time budget of a cycle (paper 3.4). Window sizes stay fixed; when the visible features
+/// would overrun the budget the cycle degrades in this order: (1) fewer samples per edge
+/// (`reduced_rows` per line window, half the samples per ellipse), (2) the least informative
+/// features are left out (shortest edges first). Cost is predicted from a per-sample cost that
+/// is learned from the measured tracking time (or fixed, `adapt = false`).
+struct BudgetParams {
+  double cycle_ms = 0.0;          ///< milliseconds per cycle; 0 = no budget
+  double cost_per_sample_us = 0.6;  ///< predicted tracking cost of one window row / ellipse sample, microseconds
+  bool adapt = true;              ///< learn cost_per_sample_us from measured tracking times
+  int reduced_rows = 12;          ///< rows per line window at degradation level 1
+  double reserve_fraction = 0.25;  ///< part of the budget kept for visibility, pose and filter
+};
+
+/// \brief Losing and regaining track: how far to search when a frame goes bad.
+struct RecoveryParams {
+  int max_search_level = 2;       ///< search windows grow to (1 + level) * search half width
+  double lost_quality = 0.15;     ///< quality below this: the frame counts as lost
+  int reset_velocity_after = 2;   ///< lost frames after which the filter's velocity is dropped
+  double gate_chi2 = 400.0;       ///< a degraded measurement this far from the prediction (chi^2, 6 dof) is rejected
+};
+
+/// \brief Every parameter of the vision cycle, with defaults in code (units in the docs).
 struct CycleParams {
-  features::LineTrackerParams track;   ///< window of features found in the last frame
-  int search_half_width = 16;          ///< pixels: half width of the window of features not found (yet)
+  features::LineTrackerParams track;    ///< window of features found in the last frame
+  int search_half_width = 16;           ///< pixels: half width of the window of features not found (yet)
+  features::EllipseTrackerParams ellipse;  ///< tracking lines of circle arcs
+  int circle_samples = 40;              ///< tracking lines per full circle (fewer for arcs)
+  double circle_sigma_px = 0.7;         ///< a-priori noise of an ellipse edge point, pixels
+  int circle_max_points = 16;           ///< ellipse edge points per circle handed to the pose solver
+  double circle_min_cos = 0.15;         ///< circles seen more edge-on than this (|cos| of view angle) are not tracked
   estimation::PoseSolverParams solver;
   VisibilityParams visibility;
-  double line_sigma_px = 0.5;          ///< a-priori noise of a tracked line, pixels
-  int min_lines = 4;                   ///< fewer found lines than this: the view pose is not updated
-  double degraded_ratio = 0.5;         ///< used / visible below this: status degraded
-  int refine_passes = 2;               ///< track + solve passes per frame (later ones re-measure missed features from the new pose)
-  double ambiguity_angle = 0.2;        ///< radians: edges closer than this in image direction count as parallel
-  double ambiguity_margin_px = 2.0;    ///< parallel edges closer than track.half_width + this are ambiguous
-  double ambiguity_min_overlap = 0.2;  ///< ... if they overlap by this fraction of the shorter one
+  double line_sigma_px = 0.5;           ///< a-priori noise of a tracked line, pixels
+  bool use_junctions = true;            ///< intersect tracked edges at model junctions (paper 3.3)
+  double junction_min_angle = 0.35;     ///< radians: smallest angle between edges intersected at a junction
+  double junction_sigma_scale = 1.5;    ///< junction sigma = line sigma * this / sin(angle)
+  int min_lines = 4;                    ///< fewer observations than this: the view pose is not updated
+  double degraded_ratio = 0.5;          ///< used / visible below this: status degraded
+  int refine_passes = 2;                ///< track + solve passes per frame (later ones re-measure missed features from the new pose)
+  double ambiguity_angle = 0.2;         ///< radians: edges closer than this in image direction count as parallel
+  double ambiguity_margin_px = 2.0;     ///< parallel edges closer than track.half_width + this are ambiguous
+  double ambiguity_min_overlap = 0.2;   ///< ... if they overlap by this fraction of the shorter one
+  BudgetParams budget;
+  RecoveryParams recovery;
+  bool use_filter = true;               ///< predict with the EKF (constant velocity); else constant pose
+  filter::PoseFilterParams filter;
+  double frame_interval_s = 1.0 / 30.0;  ///< seconds between frames when no time stamps are given
 };
 
 /// \brief What one cycle did for one object.
@@ -33,56 +71,94 @@ struct ObjectReport {
   scene::TrackStatus status = scene::TrackStatus::kUninitialised;
   int features_visible = 0;
   int features_found = 0;
-  int features_used = 0;   ///< inliers of the pose solve
+  int features_used = 0;   ///< observations kept by the pose solve (lines, ellipse points, junctions)
   int outliers = 0;
+  int lines_used = 0, circle_points_used = 0, junctions_used = 0;
   double rms_px = 0.0;
   double quality = 0.0;
   int iterations = 0;
+  int search_level = 0;    ///< 0: normal windows; > 0 searching wider after a bad frame
+  bool measurement_rejected = false;  ///< the solve was refused by the filter gate
 };
 
-/// \brief Per-cycle report: per-stage times and one ObjectReport per object.
+/// \brief Per-cycle report: per-stage times, budget state and one ObjectReport per object.
 struct CycleReport {
   std::int64_t frame = 0;
+  double stamp_s = 0.0;
   double cycle_ms = 0.0;
-  double visibility_ms = 0.0;  ///< predict + visibility + projection
+  double visibility_ms = 0.0;  ///< prediction, visibility, projection, ambiguity
   double track_ms = 0.0;       ///< feature search and tracking
-  double solve_ms = 0.0;       ///< pose estimation and view fusion
+  double solve_ms = 0.0;       ///< pose estimation, view fusion and filter
+  int degrade_level = 0;       ///< 0 none, 1 fewer samples, 2 features left out
+  int features_dropped = 0;    ///< left out by the budget this cycle
+  std::int64_t overruns = 0;   ///< cycles so far that took longer than the budget
   std::vector<ObjectReport> objects;
 };
 
-/// \brief The vision cycle of the paper (2.3), per frame and object: predict the pose; for every
-/// view, decide visibility and project the model edges; search features not found yet (wide
-/// window) and track found ones (tracking window) at their projection; solve the view pose from
-/// all found features with outlier removal; fuse the view poses into the object pose.
+/// \brief Images of one camera for one cycle: 8-bit grey, and optionally the BGR colour image
+/// (used by cue integration).
+struct CameraImage {
+  image::ImageView grey;
+  image::ColourView colour;  ///< empty if not available
+};
+
+/// \brief The vision cycle of the paper (2.3), per frame and object: predict the pose (EKF);
+/// for every view decide visibility and project the model edges and circles; search features not
+/// found yet (wide window) and track found ones (tracking window) at their projection; intersect
+/// tracked edges at junctions; solve the view pose from all features with outlier removal;
+/// re-measure what was missed from the fresh pose; fuse the view poses into the object pose and
+/// update the filter. Allocates only when the scene grew since the last call; never throws.
 class VisionCycle {
  public:
-  explicit VisionCycle(const CycleParams& params = {});
+  /// `now` is the clock used for timing and the budget (injectable for tests).
+  explicit VisionCycle(const CycleParams& params = {}, Clock::time_point (*now)() = &Clock::now);
   [[nodiscard]] const CycleParams& params() const { return p_; }
+  /// Replaces the parameters (rebuilds the trackers: allocates; not for the real-time path).
+  void set_params(const CycleParams& params);
 
-  /// Runs one cycle on `images` (one 8-bit grey image per camera of the scene, in order).
-  /// Allocates only when the scene grew since the last call. Never throws.
-  const CycleReport& process(scene::Scene& scene, std::span<const image::ImageView> images);
+  /// Runs one cycle on one image set per camera of the scene, in order. `stamp_s` is the time of
+  /// the images in seconds (negative: frame count * frame_interval_s).
+  const CycleReport& process(scene::Scene& scene, std::span<const CameraImage> images, double stamp_s = -1.0);
 
   /// Edge pixels found in the last cycle, for overlays (pixels, per camera).
   [[nodiscard]] const std::vector<Eigen::Vector2d>& edgels(std::size_t camera) const;
 
  private:
   void prepare(const scene::Scene& scene);
-  void process_view(scene::Object& obj, scene::View& view, const scene::Camera& cam, const image::ImageView& img,
-                    ObjectReport& rep);
+  void predict_view(scene::Object& obj, scene::View& view, const scene::Camera& cam);
   void mark_ambiguous(scene::View& view, const scene::Camera& cam) const;
-  int track_features(scene::View& view, const scene::Camera& cam, const image::ImageView& img, bool first_pass);
+  void plan_budget(scene::Scene& scene);
+  int track_features(const model::Model& model, scene::View& view, const scene::Camera& cam, const CameraImage& img,
+                     bool first_pass, int search_level);
+  void collect_observations(const scene::Object& obj, scene::View& view, const scene::Camera& cam);
+  void process_view(scene::Object& obj, scene::View& view, const scene::Camera& cam, const CameraImage& img,
+                    ObjectReport& rep);
+  void fuse_and_filter(scene::Scene& scene, scene::Object& obj, ObjectReport& rep, double stamp_s);
 
   CycleParams p_;
-  features::LineTracker tracker_, searcher_;
+  Clock::time_point (*now_)();
+  features::LineTracker tracker_, reduced_tracker_;
+  std::vector<features::LineTracker> searchers_;  // per search level
+  features::EllipseTracker ellipse_tracker_, ellipse_searcher_, reduced_ellipse_tracker_;
   estimation::PoseSolver solver_;
   VisibilityTester visibility_;
   std::vector<EdgeVisibility> edge_vis_;
   std::vector<estimation::LineObservation> line_obs_;
   std::vector<std::uint32_t> line_obs_feature_;
   std::vector<std::uint8_t> line_inlier_;
+  std::vector<estimation::PointObservation> point_obs_;
+  std::vector<std::uint8_t> point_inlier_;
+  std::vector<estimation::CircleObservation> circle_obs_;
+  std::vector<std::uint32_t> circle_obs_feature_;
+  std::vector<std::uint8_t> circle_inlier_;
+  std::vector<features::CurveSample> curve_;
   std::vector<std::vector<Eigen::Vector2d>> edgels_;
   std::vector<Eigen::Vector2d> undistorted_;  // edge pixels of one feature, normalised
+  std::vector<float> drop_scores_;            // budget: informativeness per feature
+  int degrade_level_ = 0;
+  int rows_per_line_ = 0, samples_per_circle_ = 0;
+  double last_track_us_ = 0.0;
+  long last_samples_ = 0;
   CycleReport report_;
   std::int64_t frame_ = 0;
 };

@@ -1,6 +1,7 @@
 // v4r - robust model-based object tracking. MIT licence.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -10,7 +11,9 @@
 
 #include "v4r/core/expected.hpp"
 #include "v4r/estimation/pose_solver.hpp"
+#include "v4r/features/ellipse_tracker.hpp"
 #include "v4r/features/line_tracker.hpp"
+#include "v4r/filter/pose_filter.hpp"
 #include "v4r/geometry/camera.hpp"
 #include "v4r/geometry/se3.hpp"
 #include "v4r/model/model.hpp"
@@ -45,8 +48,27 @@ struct LineFeature {
   features::LineTrackState track;     ///< state the tracker carries between frames
   features::LineMeasurement measurement;  ///< last measurement (pixels)
   Eigen::Vector2d line_n1 = Eigen::Vector2d::Zero(), line_n2 = Eigen::Vector2d::Zero();  ///< measured line, normalised undistorted coordinates
+  bool dropped = false;               ///< left out by the time budget this cycle
   bool retrack = false;               ///< transient: measure again in the next pass of this cycle
   int frames_missing = 0;             ///< consecutive frames not found
+};
+
+/// \brief An image ellipse (or elliptic arc) linked to a model circle arc (paper 3.2): the
+/// projected tracking lines and the last measurement.
+struct ArcFeature {
+  static constexpr int kMaxSamples = 64;
+  model::Index arc = model::kNone;    ///< index into Model::arcs()
+  FeatureStatus status = FeatureStatus::kNotFound;
+  bool visible = false;
+  bool dropped = false;               ///< left out by the time budget this cycle
+  bool retrack = false;
+  int samples = 0;                    ///< visible tracking lines this cycle
+  std::array<Eigen::Vector3d, kMaxSamples> X;  ///< model points of the tracking lines, object frame
+  int edges = 0;                      ///< edge points of the last measurement (ellipse inliers)
+  std::array<Eigen::Vector2d, kMaxSamples> edge_px;  ///< their positions, pixels
+  features::EllipseTrackState track;
+  features::EllipseMeasurement measurement;
+  int frames_missing = 0;
 };
 
 /// \brief An object as seen by one camera: the image features and the view pose.
@@ -54,6 +76,7 @@ struct View {
   std::size_t camera = 0;         ///< index into Scene::cameras()
   geometry::SE3 T_cam_obj;        ///< view pose
   std::vector<LineFeature> lines;  ///< one per model edge
+  std::vector<ArcFeature> arcs;    ///< one per model circle arc
   std::vector<std::uint8_t> face_visible;  ///< per model face, with hysteresis
   estimation::PoseResult pose;    ///< last pose solve of this view
 };
@@ -72,6 +95,12 @@ struct Object {
   geometry::Matrix6d covariance = geometry::Matrix6d::Zero();
   TrackStatus status = TrackStatus::kUninitialised;
   double quality = 0.0;  ///< 0..1 from found-feature ratio and residuals
+  filter::PoseFilter filter;          ///< smooths T_ref_obj and predicts it (constant velocity)
+  geometry::SE3 T_ref_obj_filtered;   ///< filter output after the last cycle
+  geometry::SE3 T_pred;               ///< prediction for the current cycle
+  geometry::Vector6d velocity = geometry::Vector6d::Zero();  ///< (v, w) m/s, rad/s, left tangent of T_ref_obj
+  double last_stamp = -1.0;           ///< seconds: time of the last cycle of this object
+  int bad_frames = 0;                 ///< consecutive degraded or lost frames
 };
 
 /// \brief The scene: cameras and objects, owned by value. Adding an object creates one view per

@@ -1,0 +1,174 @@
+// v4r - robust model-based object tracking. MIT licence.
+// The vision cycle: no heap allocation per frame, the time budget's degradation order with a fake
+// clock, and losing and regaining track.
+#include <atomic>
+#include <cstdlib>
+#include <new>
+
+#include <gtest/gtest.h>
+
+#include "v4r/geometry/look_at.hpp"
+#include "v4r/model/cao_reader.hpp"
+#include "v4r/pipeline/tracker.hpp"
+#include "v4r/synth/renderer.hpp"
+
+// Counting global allocator: counts allocations while `g_counting` is set.
+namespace {
+std::atomic<bool> g_counting{false};
+std::atomic<long> g_allocations{0};
+}  // namespace
+void* operator new(std::size_t n) {
+  if (g_counting.load(std::memory_order_relaxed)) g_allocations.fetch_add(1, std::memory_order_relaxed);
+  if (void* p = std::malloc(n == 0 ? 1 : n)) return p;
+  throw std::bad_alloc();
+}
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+
+using namespace v4r;
+
+namespace {
+
+struct Sequence {
+  std::shared_ptr<const model::Model> model;
+  std::vector<geometry::SE3> truth;
+  std::vector<cv::Mat> grey, bgr;
+};
+
+Sequence make(std::string (*cao)(), double distance, int frames) {
+  Sequence s;
+  auto m = model::parse_cao(cao(), "m");
+  s.model = std::make_shared<const model::Model>(std::move(*m));
+  synth::TrajectorySpec spec;
+  spec.frames = frames;
+  spec.T0 = geometry::look_at(distance, -0.6, 0.75);
+  s.truth = synth::make_trajectory(spec);
+  synth::RenderOptions ro;
+  synth::Renderer r(synth::default_camera(), ro);
+  for (int i = 0; i < frames; ++i) {
+    s.bgr.push_back(r.render(*s.model, s.truth[i], i));
+    cv::Mat g(s.bgr.back().rows, s.bgr.back().cols, CV_8UC1);
+    for (int y = 0; y < g.rows; ++y)
+      for (int x = 0; x < g.cols; ++x) {
+        const cv::Vec3b c = s.bgr.back().at<cv::Vec3b>(y, x);
+        g.at<std::uint8_t>(y, x) = static_cast<std::uint8_t>((c[0] * 29 + c[1] * 150 + c[2] * 77) >> 8);
+      }
+    s.grey.push_back(g);
+  }
+  return s;
+}
+
+image::ImageView view(const cv::Mat& g) { return {g.ptr<std::uint8_t>(0), g.cols, g.rows, static_cast<int>(g.step[0])}; }
+image::ColourView cview(const cv::Mat& c) { return {c.ptr<std::uint8_t>(0), c.cols, c.rows, static_cast<int>(c.step[0])}; }
+
+}  // namespace
+
+TEST(VisionCycle, AllocatesNothingPerFrame) {
+  // Lines, ellipses, junctions, colour cues, the filter and the budget all run; after the first
+  // (warm-up) frame the cycle must not touch the heap.
+  for (auto cao : {&synth::ship_mockup_cao, &synth::flange_cao}) {
+    const Sequence s = make(cao, 0.6, 12);
+    pipeline::CycleParams p;
+    p.budget.cycle_ms = 5.0;
+    pipeline::SingleObjectTracker tracker(s.model, synth::default_camera(), p);
+    tracker.set_pose(s.truth[0]);
+    g_allocations = 0;
+    g_counting = true;
+    tracker.track(view(s.grey[0]), cview(s.bgr[0]));
+    g_counting = false;
+    EXPECT_GT(g_allocations, 0) << "the first frame sizes the buffers (and shows the counter works)";
+    long allocations = 0;
+    int used = 0;
+    for (std::size_t i = 1; i < s.grey.size(); ++i) {
+      g_allocations = 0;
+      g_counting = true;
+      const pipeline::FrameResult r = tracker.track(view(s.grey[i]), cview(s.bgr[i]));
+      g_counting = false;
+      allocations += g_allocations;
+      used += r.report.features_used;
+      EXPECT_NE(r.report.status, scene::TrackStatus::kLost);
+    }
+    EXPECT_EQ(allocations, 0);
+    EXPECT_GT(used, 0);
+  }
+}
+
+namespace {
+// A fake clock: every call advances by 1 ms, so every cycle takes several milliseconds.
+std::int64_t g_ticks = 0;
+Clock::time_point fake_now() { return Clock::time_point(std::chrono::milliseconds(++g_ticks)); }
+}  // namespace
+
+TEST(VisionCycle, BudgetDegradesSamplesFirstThenFeaturesAndCountsOverruns) {
+  const Sequence s = make(&synth::ship_mockup_cao, 0.6, 3);
+  scene::Scene sc;
+  sc.add_camera(scene::Camera{"cam", synth::default_camera(), geometry::SE3()});
+  ASSERT_TRUE(sc.add_object("ship", s.model));
+  sc.set_pose(0, s.truth[0]);
+  const pipeline::CameraImage img{view(s.grey[0]), {}};
+
+  pipeline::CycleParams p;
+  p.budget.adapt = false;
+  p.budget.cost_per_sample_us = 1.0;
+  // Enough budget: no degradation.
+  p.budget.cycle_ms = 100.0;
+  pipeline::VisionCycle generous(p, &fake_now);
+  const auto& r0 = generous.process(sc, std::span(&img, 1));
+  EXPECT_EQ(r0.degrade_level, 0);
+  EXPECT_EQ(r0.features_dropped, 0);
+  const int visible = r0.objects[0].features_visible;
+  ASSERT_GE(visible, 10);
+  // 1 us per sample: visible * 24 rows need ~visible*24 us; with 0.75 of the budget usable, a
+  // budget between visible*12 and visible*24 us degrades to fewer rows only.
+  sc.set_pose(0, s.truth[0]);
+  p.budget.cycle_ms = visible * 18.0 / 0.75 / 1000.0;
+  pipeline::VisionCycle tight(p, &fake_now);
+  const auto& r1 = tight.process(sc, std::span(&img, 1));
+  EXPECT_EQ(r1.degrade_level, 1);
+  EXPECT_EQ(r1.features_dropped, 0);
+  EXPECT_EQ(r1.objects[0].features_visible, visible);
+  // Below visible*12 us: features are left out too, shortest first, down to what fits.
+  sc.set_pose(0, s.truth[0]);
+  p.budget.cycle_ms = 8 * 12.0 / 0.75 / 1000.0;
+  pipeline::VisionCycle tighter(p, &fake_now);
+  const auto& r2 = tighter.process(sc, std::span(&img, 1));
+  EXPECT_EQ(r2.degrade_level, 2);
+  EXPECT_EQ(r2.features_dropped, visible - 8);
+  EXPECT_EQ(r2.objects[0].features_visible, 8);
+  float shortest_kept = 1e9f, longest_dropped = 0.0f;
+  for (const auto& f : sc.objects()[0].views[0].lines) {
+    if (!f.visible || f.ambiguous) continue;
+    const float len = static_cast<float>((f.predicted.b - f.predicted.a).norm());
+    if (f.dropped) longest_dropped = std::max(longest_dropped, len);
+    else shortest_kept = std::min(shortest_kept, len);
+  }
+  EXPECT_LE(longest_dropped, shortest_kept + 3.0f);  // (the kept ones were re-projected after the solve)
+  // With the fake clock each cycle takes far longer than this budget: every cycle is an overrun.
+  EXPECT_EQ(r2.overruns, 1);
+  tighter.process(sc, std::span(&img, 1));
+  EXPECT_EQ(tighter.process(sc, std::span(&img, 1)).overruns, 3);
+  EXPECT_GT(r2.track_ms, 0.0);
+}
+
+TEST(VisionCycle, LosesTrackWhenTheObjectVanishesAndRegainsIt) {
+  const Sequence s = make(&synth::box_cao, 0.55, 30);
+  pipeline::SingleObjectTracker tracker(s.model, synth::default_camera());
+  tracker.set_pose(s.truth[0]);
+  const cv::Mat empty(s.grey[0].rows, s.grey[0].cols, CV_8UC1, cv::Scalar(70));
+  int lost = 0;
+  pipeline::FrameResult r;
+  for (int i = 0; i < 30; ++i) {
+    const bool hidden = i >= 10 && i < 14;  // the object is gone for four frames
+    r = tracker.track(view(hidden ? empty : s.grey[i]));
+    if (hidden) {
+      lost += r.report.status == scene::TrackStatus::kLost;
+      // It holds near the last good pose instead of drifting away.
+      EXPECT_LT((r.T_cam_obj.translation() - s.truth[9].translation()).norm(), 0.03) << i;
+    }
+    if (i >= 18) {
+      EXPECT_EQ(r.report.status, scene::TrackStatus::kTracking) << i;
+      EXPECT_LT((r.T_cam_obj.translation() - s.truth[i].translation()).norm(), 1e-3) << i;
+    }
+  }
+  EXPECT_EQ(lost, 4);
+}

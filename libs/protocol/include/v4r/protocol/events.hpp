@@ -1,0 +1,81 @@
+// v4r - robust model-based object tracking. MIT licence.
+#pragma once
+
+// Server -> client messages of the `v4r serve` protocol: events, replies and the greeting, with
+// formatters (for the server) and parsers (for clients and tests). Include protocol.hpp.
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <variant>
+#include <vector>
+
+#include "v4r/protocol/protocol.hpp"
+
+namespace v4r::protocol {
+
+/// \brief `ObjectPose object=ID frame=N stamp=S t=tx,ty,tz q=qw,qx,qy,qz cov=<36> quality=Q
+/// status=tracking|degraded|lost`: the pose of one object after one frame.
+struct ObjectPoseEvent {
+  std::string object;
+  std::uint64_t frame = 0;  ///< input frame index, counted from 0
+  double stamp = 0.0;       ///< time stamp of that frame, seconds
+  Vec3 t{};                 ///< T_cam_obj translation, metres
+  std::array<double, 4> q{1.0, 0.0, 0.0, 0.0};  ///< T_cam_obj rotation, unit quaternion qw,qx,qy,qz
+  /// 6x6 covariance, row-major, of the left tangent (v, w) of T_cam_obj (translation first):
+  /// m^2, m*rad, rad^2.
+  std::array<double, 36> cov{};
+  double quality = 0.0;  ///< 0 (no support) .. 1 (all expected features found, no outliers)
+  TrackStatus status = TrackStatus::kLost;
+  bool operator==(const ObjectPoseEvent&) const = default;
+};
+
+/// \brief `SystemStatus frame=N cycle_ms=X features_found=A features_used=B outliers=C
+/// overruns=D`: one vision cycle, summed over all objects.
+struct SystemStatusEvent {
+  std::uint64_t frame = 0;
+  double cycle_ms = 0.0;  ///< wall time of the cycle, milliseconds
+  std::uint64_t features_found = 0;
+  std::uint64_t features_used = 0;  ///< found and used by the pose estimate
+  std::uint64_t outliers = 0;       ///< found but rejected as outliers
+  std::uint64_t overruns = 0;       ///< cycles over the time budget since the start
+  bool operator==(const SystemStatusEvent&) const = default;
+};
+
+/// \brief `Hello version=1 [auth=required]`: the greeting.
+struct HelloMessage {
+  int version = kVersion;
+  bool auth_required = false;
+  bool operator==(const HelloMessage&) const = default;
+};
+
+/// \brief `OK <Command> key=value...` or `ERR <Command> code=<word> msg="..." ...`.
+struct Reply {
+  bool ok = true;
+  std::string command;
+  std::string code;     ///< ERR only
+  std::string message;  ///< ERR only, unescaped
+  std::vector<std::pair<std::string, std::string>> fields;  ///< other key=value words, in order, unescaped
+  /// Value of a field, or nullptr.
+  [[nodiscard]] const std::string* find(std::string_view key) const;
+  bool operator==(const Reply&) const = default;
+};
+
+/// \brief Any line a server sends.
+using ServerMessage = std::variant<HelloMessage, Reply, ObjectPoseEvent, SystemStatusEvent>;
+
+/// The event as one line (no LF). Numbers are shortest round-trip, so parsing gives back the
+/// same doubles exactly.
+std::string format(const ObjectPoseEvent& e);
+std::string format(const SystemStatusEvent& e);
+
+/// Inverse of format(). Every listed key is required, once; unknown keys are ignored (newer
+/// servers may add some); numbers must be finite. No length limit applies to server lines.
+std::variant<ObjectPoseEvent, ParseError> parse_object_pose(std::string_view line);
+std::variant<SystemStatusEvent, ParseError> parse_system_status(std::string_view line);
+/// Any server line: the greeting, a reply or an event (one trailing CR is stripped).
+std::variant<ServerMessage, ParseError> parse_server_line(std::string_view line);
+
+}  // namespace v4r::protocol

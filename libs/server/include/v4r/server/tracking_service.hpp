@@ -1,0 +1,177 @@
+// v4r - robust model-based object tracking. MIT licence.
+#pragma once
+
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <cstdio>
+#include <deque>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <variant>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "v4r/core/clock.hpp"
+#include "v4r/core/expected.hpp"
+#include "v4r/core/params.hpp"
+#include "v4r/geometry/camera.hpp"
+#include "v4r/io/frame_source.hpp"
+#include "v4r/model/model.hpp"
+#include "v4r/pipeline/vision_cycle.hpp"
+#include "v4r/protocol/protocol.hpp"
+#include "v4r/scene/scene.hpp"
+#include "v4r/server/feature_model.hpp"
+#include "v4r/server/outbox.hpp"
+
+namespace v4r::server {
+
+/// \brief Set-up of the tracking thread.
+struct ServiceOptions {
+  geometry::PinholeCamera camera;  ///< calibration of the input (the scene's only camera, reference frame)
+  double fps = 30.0;               ///< frames per second the input is played at; <= 0: as fast as processed
+  bool paused = false;             ///< hold at frame 0 until Start
+  pipeline::CycleParams params;    ///< initial tracker parameters
+  std::string default_log_file = "v4r_cycles.csv";  ///< `Log on` without file=
+  std::size_t max_objects = 64;    ///< AddObject beyond this: ERR code=busy
+  std::size_t max_features = 20000;  ///< AddFeature beyond this many features per object: ERR code=busy
+};
+
+/// \brief Everything one frame produced for the clients, formatted once and shared by all of them.
+struct FrameEvents {
+  std::int64_t frame = 0;          ///< input frame index, from 0
+  double stamp_s = 0.0;            ///< time stamp of the frame, seconds
+  Clock::time_point released;      ///< when the frame was handed to the vision cycle
+  std::vector<protocol::ObjectPoseEvent> poses;  ///< one per tracked object
+  std::vector<SharedLine> pose_lines;            ///< the same, formatted (with LF)
+  protocol::SystemStatusEvent status;
+  SharedLine status_line;                        ///< formatted (with LF)
+  double visibility_ms = 0.0, track_ms = 0.0, solve_ms = 0.0;  ///< stage times of the cycle
+};
+
+/// \brief A model parsed away from the tracking thread, to be given to an object (the second half
+/// of `AddModel`).
+struct ModelReady {
+  std::string object;
+  std::shared_ptr<const model::Model> model;
+};
+
+/// \brief The tracking thread and the one interface between the server and the pipeline. It owns
+/// the input, the Scene, the VisionCycle and its parameters: frames are read from the input and
+/// paced at `fps` (steady clock, sleep_until), run through the vision cycle, and each frame's
+/// events are handed to the frame callback. Scene commands (objects, models, features, poses,
+/// parameters, Start/Pause, Display, Log) are queued by any thread with submit() and applied by
+/// the tracking thread between frames, in order; each one's reply line is handed to its callback
+/// once it was applied. The tracking thread never waits for anything but the frame clock and the
+/// command queue; callbacks must not block.
+///
+/// Play state: with `paused` the service holds before frame 0 until Start. Pause holds before
+/// the next frame (the last one is not processed again, no events are sent). At the end of the
+/// input the service stops producing events and keeps applying commands.
+class TrackingService {
+ public:
+  using ReplyFn = std::function<void(std::string)>;  ///< receives the reply line (without LF)
+  using FrameFn = std::function<void(std::shared_ptr<const FrameEvents>)>;
+  using OverlayFn = std::function<void(std::shared_ptr<const cv::Mat>, std::int64_t frame)>;
+  using Request = std::variant<protocol::Command, ModelReady>;
+
+  TrackingService(ServiceOptions opt, std::unique_ptr<io::FrameSource> source);
+  ~TrackingService();
+  TrackingService(const TrackingService&) = delete;
+  TrackingService& operator=(const TrackingService&) = delete;
+
+  /// Reads the first frame and checks it against the calibration. Call once, before start().
+  Expected<void> open();
+  /// Callbacks, called on the tracking thread; set before start().
+  void set_frame_callback(FrameFn fn) { on_frame_ = std::move(fn); }
+  void set_overlay_callback(OverlayFn fn) { on_overlay_ = std::move(fn); }
+
+  /// Starts the tracking thread.
+  void start();
+  /// Stops and joins the tracking thread (also done by the destructor).
+  void stop();
+
+  /// Queues a command for the tracking thread (thread-safe, never blocks for long). Commands the
+  /// service does not handle (Subscribe, Ping, Auth...) get `ERR ... code=internal`.
+  void submit(Request request, ReplyFn done);
+
+  /// Frames processed so far.
+  [[nodiscard]] std::int64_t frames_processed() const { return frames_.load(); }
+  [[nodiscard]] bool paused() const { return paused_.load(); }
+  [[nodiscard]] bool end_of_input() const { return end_.load(); }
+  [[nodiscard]] bool display() const { return display_.load(); }
+  /// Number of objects currently tracked (with a model and a pose).
+  [[nodiscard]] int objects_tracked() const { return tracked_.load(); }
+
+ private:
+  struct ObjectEntry {
+    std::string name;
+    std::shared_ptr<const model::Model> model;  ///< null until AddModel or the first line/circle
+    bool from_features = false;                 ///< built with AddFeature
+    FeatureModel features;
+    bool has_pose = false;
+    geometry::SE3 pose;  ///< last SetPose (T_cam_obj), applied when the model arrives
+  };
+  struct Pending {
+    Request request;
+    ReplyFn done;
+  };
+
+  void run(std::stop_token st);
+  void apply_pending();
+  std::string apply(const Request& r);
+  std::string apply_command(const protocol::Command& c);
+  std::string set_model(ObjectEntry& e, std::shared_ptr<const model::Model> m, std::string_view cmd);
+  void load_next_frame();
+  void process_frame(Clock::time_point released);
+  ObjectEntry* find(const std::string& name);
+
+  // Command handlers: return the reply line.
+  std::string on(const protocol::AddObject& c);
+  std::string on(const protocol::RemoveObject& c);
+  std::string on(const protocol::AddJunction& c);
+  std::string on(const protocol::AddLine& c);
+  std::string on(const protocol::AddCircle& c);
+  std::string on(const protocol::RemoveFeature& c);
+  std::string on(const protocol::SetPose& c);
+  std::string on(const protocol::SetParam& c);
+  std::string on(const protocol::GetParam& c);
+  std::string on(const protocol::ListParams& c);
+  std::string on(const protocol::Start& c);
+  std::string on(const protocol::Pause& c);
+  std::string on(const protocol::Display& c);
+  std::string on(const protocol::Log& c);
+  std::string feature_changed(ObjectEntry& e, const char* cmd, const std::string& id, Expected<void> r);
+
+  ServiceOptions opt_;
+  std::unique_ptr<io::FrameSource> source_;
+  FrameFn on_frame_;
+  OverlayFn on_overlay_;
+
+  // Owned by the tracking thread.
+  scene::Scene scene_;
+  pipeline::CycleParams params_;
+  ParamRegistry registry_;
+  pipeline::VisionCycle cycle_;
+  std::vector<ObjectEntry> objects_;
+  cv::Mat frame_, grey_;
+  bool have_frame_ = false;
+  std::int64_t next_frame_ = 0;
+  Clock::time_point due_;
+  std::FILE* log_ = nullptr;
+
+  std::mutex mutex_;  // guards queue_
+  std::condition_variable_any wake_;
+  std::deque<Pending> queue_;
+
+  std::atomic<std::int64_t> frames_{0};
+  std::atomic<bool> paused_{false}, end_{false}, display_{false};
+  std::atomic<int> tracked_{0};
+  std::jthread thread_;
+};
+
+}  // namespace v4r::server

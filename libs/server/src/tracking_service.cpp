@@ -1,0 +1,495 @@
+// v4r - robust model-based object tracking. MIT licence.
+#include "v4r/server/tracking_service.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include <fmt/format.h>
+#include <opencv2/imgproc.hpp>
+
+#include "v4r/core/log.hpp"
+#include "v4r/pipeline/params.hpp"
+#include "v4r/viz/overlay.hpp"
+
+namespace v4r::server {
+
+namespace code = protocol::code;
+using protocol::format_err;
+using protocol::format_ok;
+using protocol::format_value;
+
+namespace {
+
+template <class... Ts>
+struct Overloaded : Ts... {
+  using Ts::operator()...;
+};
+template <class... Ts>
+Overloaded(Ts...) -> Overloaded<Ts...>;
+
+SharedLine shared_line(std::string s) {
+  s.push_back('\n');
+  return std::make_shared<const std::string>(std::move(s));
+}
+
+protocol::TrackStatus to_protocol(scene::TrackStatus s) {
+  switch (s) {
+    case scene::TrackStatus::kTracking: return protocol::TrackStatus::kTracking;
+    case scene::TrackStatus::kDegraded: return protocol::TrackStatus::kDegraded;
+    default: return protocol::TrackStatus::kLost;
+  }
+}
+
+/// Replaces the model of scene object `i` and keeps its tracking state (pose, filter, status):
+/// features added or removed while tracking take effect from the next frame without a restart.
+void replace_model(scene::Scene& scene, std::size_t i, std::shared_ptr<const model::Model> m) {
+  auto& objs = scene.objects();
+  scene::Object old = std::move(objs[i]);
+  objs.erase(objs.begin() + static_cast<std::ptrdiff_t>(i));
+  auto idx = scene.add_object(old.name, std::move(m));
+  if (!idx) return;  // cannot happen: the name was free
+  scene::Object& o = scene.objects()[*idx];
+  o.T_ref_obj = old.T_ref_obj;
+  o.covariance = old.covariance;
+  o.status = old.status;
+  o.quality = old.quality;
+  o.filter = old.filter;
+  o.T_ref_obj_filtered = old.T_ref_obj_filtered;
+  o.T_pred = old.T_pred;
+  o.velocity = old.velocity;
+  o.last_stamp = old.last_stamp;
+  o.bad_frames = old.bad_frames;
+  for (scene::View& v : o.views) v.T_cam_obj = scene.cameras()[v.camera].T_ref_cam.inverse() * o.T_ref_obj;
+}
+
+Eigen::Vector3d vec(const protocol::Vec3& v) { return {v[0], v[1], v[2]}; }
+
+}  // namespace
+
+TrackingService::TrackingService(ServiceOptions opt, std::unique_ptr<io::FrameSource> source)
+    : opt_(std::move(opt)),
+      source_(std::move(source)),
+      params_(opt_.params),
+      registry_(pipeline::make_registry(params_)),
+      cycle_(params_) {
+  scene_.add_camera(scene::Camera{"camera", opt_.camera, geometry::SE3()});
+  paused_ = opt_.paused;
+}
+
+TrackingService::~TrackingService() {
+  stop();
+  if (log_) std::fclose(log_);
+}
+
+Expected<void> TrackingService::open() {
+  if (!source_) return make_error("no input");
+  auto more = source_->next(frame_);
+  if (!more) return more.error();
+  if (!*more) return make_error("the input holds no frames");
+  if (frame_.cols != opt_.camera.width || frame_.rows != opt_.camera.height)
+    return make_error(source_->current_name(), 0, 0,
+                      fmt::format("image is {}x{} but the camera calibration is {}x{}", frame_.cols, frame_.rows,
+                                  opt_.camera.width, opt_.camera.height));
+  have_frame_ = true;
+  return {};
+}
+
+void TrackingService::start() {
+  if (thread_.joinable()) return;
+  thread_ = std::jthread([this](std::stop_token st) { run(st); });
+}
+
+void TrackingService::stop() {
+  if (!thread_.joinable()) return;
+  thread_.request_stop();
+  wake_.notify_all();
+  thread_.join();
+}
+
+void TrackingService::submit(Request request, ReplyFn done) {
+  {
+    std::scoped_lock lock(mutex_);
+    queue_.push_back(Pending{std::move(request), std::move(done)});
+  }
+  wake_.notify_one();
+}
+
+void TrackingService::run(std::stop_token st) {
+  const bool paced = opt_.fps > 0.0;
+  const auto period = paced ? std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(1.0 / opt_.fps))
+                            : Clock::duration::zero();
+  due_ = Clock::now();
+  bool was_paused = paused_;
+  while (!st.stop_requested()) {
+    apply_pending();
+    if (!have_frame_ && !end_) load_next_frame();
+    const bool paused = paused_;
+    if (was_paused && !paused) due_ = Clock::now();  // resume without catching up
+    was_paused = paused;
+    {
+      std::unique_lock lock(mutex_);
+      if (!have_frame_ || paused) {
+        wake_.wait(lock, st, [&] { return !queue_.empty(); });
+        continue;
+      }
+      if (paced && Clock::now() < due_) {
+        // Sleep until the frame is due, or until a command arrives (applied first).
+        if (wake_.wait_until(lock, st, due_, [&] { return !queue_.empty(); }) || st.stop_requested()) continue;
+      }
+    }
+    const Clock::time_point released = Clock::now();
+    process_frame(released);
+    have_frame_ = false;
+    if (paced) {
+      due_ += period;
+      if (due_ + period < released) due_ = released;  // far behind (slow cycle): do not burst
+    }
+  }
+}
+
+void TrackingService::load_next_frame() {
+  auto more = source_->next(frame_);
+  if (!more) {
+    V4R_LOG_ERROR("v4r serve: input: {}", more.error().to_string());
+    end_ = true;
+    return;
+  }
+  if (!*more) {
+    end_ = true;
+    return;
+  }
+  if (frame_.cols != opt_.camera.width || frame_.rows != opt_.camera.height) {
+    V4R_LOG_ERROR("v4r serve: {}: image is {}x{} but the camera calibration is {}x{}", source_->current_name(),
+                  frame_.cols, frame_.rows, opt_.camera.width, opt_.camera.height);
+    end_ = true;
+    return;
+  }
+  have_frame_ = true;
+}
+
+void TrackingService::apply_pending() {
+  for (;;) {
+    Pending p;
+    {
+      std::scoped_lock lock(mutex_);
+      if (queue_.empty()) return;
+      p = std::move(queue_.front());
+      queue_.pop_front();
+    }
+    std::string reply = apply(p.request);
+    if (p.done) p.done(std::move(reply));
+  }
+}
+
+std::string TrackingService::apply(const Request& r) {
+  if (const auto* m = std::get_if<ModelReady>(&r)) {
+    ObjectEntry* e = find(m->object);
+    if (!e) return format_err("AddModel", code::kUnknownObject, fmt::format("no object '{}'", m->object));
+    return set_model(*e, m->model, "AddModel");
+  }
+  return apply_command(std::get<protocol::Command>(r));
+}
+
+std::string TrackingService::apply_command(const protocol::Command& c) {
+  return std::visit(Overloaded{[&](const protocol::AddObject& x) { return on(x); },
+                               [&](const protocol::RemoveObject& x) { return on(x); },
+                               [&](const protocol::AddJunction& x) { return on(x); },
+                               [&](const protocol::AddLine& x) { return on(x); },
+                               [&](const protocol::AddCircle& x) { return on(x); },
+                               [&](const protocol::RemoveFeature& x) { return on(x); },
+                               [&](const protocol::SetPose& x) { return on(x); },
+                               [&](const protocol::SetParam& x) { return on(x); },
+                               [&](const protocol::GetParam& x) { return on(x); },
+                               [&](const protocol::ListParams& x) { return on(x); },
+                               [&](const protocol::Start& x) { return on(x); },
+                               [&](const protocol::Pause& x) { return on(x); },
+                               [&](const protocol::Display& x) { return on(x); },
+                               [&](const protocol::Log& x) { return on(x); },
+                               [&](const auto&) {
+                                 return format_err(protocol::command_name(c), code::kInternal,
+                                                   "not a command of the tracking service");
+                               }},
+                    c);
+}
+
+TrackingService::ObjectEntry* TrackingService::find(const std::string& name) {
+  for (ObjectEntry& e : objects_)
+    if (e.name == name) return &e;
+  return nullptr;
+}
+
+std::string TrackingService::set_model(ObjectEntry& e, std::shared_ptr<const model::Model> m, std::string_view cmd) {
+  const long idx = scene_.find_object(e.name);
+  if (!m) {
+    // No trackable feature left: the object leaves the scene until it has one again.
+    if (idx >= 0) scene_.objects().erase(scene_.objects().begin() + idx);
+  } else if (idx >= 0) {
+    replace_model(scene_, static_cast<std::size_t>(idx), m);
+  } else {
+    auto added = scene_.add_object(e.name, m);
+    if (!added) return format_err(cmd, code::kInternal, added.error().to_string());
+    if (e.has_pose) scene_.set_pose(*added, e.pose);
+  }
+  e.model = m;
+  tracked_ = static_cast<int>(std::count_if(scene_.objects().begin(), scene_.objects().end(), [](const scene::Object& o) {
+    return o.status != scene::TrackStatus::kUninitialised;
+  }));
+  const std::size_t j = m ? m->junctions().size() : 0, l = m ? m->lines().size() : 0, a = m ? m->arcs().size() : 0;
+  return format_ok(cmd, fmt::format("object={} junctions={} lines={} circles={}", e.name, j, l, a));
+}
+
+std::string TrackingService::on(const protocol::AddObject& c) {
+  if (find(c.name)) return format_err("AddObject", code::kExists, fmt::format("object '{}' exists already", c.name));
+  if (objects_.size() >= opt_.max_objects)
+    return format_err("AddObject", code::kBusy, fmt::format("at most {} objects", opt_.max_objects));
+  ObjectEntry e;
+  e.name = c.name;
+  objects_.push_back(std::move(e));
+  return format_ok("AddObject", "name=" + c.name);
+}
+
+std::string TrackingService::on(const protocol::RemoveObject& c) {
+  auto it = std::find_if(objects_.begin(), objects_.end(), [&](const ObjectEntry& e) { return e.name == c.name; });
+  if (it == objects_.end()) return format_err("RemoveObject", code::kUnknownObject, fmt::format("no object '{}'", c.name));
+  if (const long idx = scene_.find_object(c.name); idx >= 0) scene_.objects().erase(scene_.objects().begin() + idx);
+  objects_.erase(it);
+  tracked_ = static_cast<int>(std::count_if(scene_.objects().begin(), scene_.objects().end(), [](const scene::Object& o) {
+    return o.status != scene::TrackStatus::kUninitialised;
+  }));
+  return format_ok("RemoveObject", "name=" + c.name);
+}
+
+std::string TrackingService::feature_changed(ObjectEntry& e, const char* cmd, const std::string& id, Expected<void> r) {
+  if (!r) {
+    const std::string& f = r.error().field;
+    const std::string_view c = f == "exists"      ? code::kExists
+                               : f == "not_found" ? code::kUnknownFeature
+                               : f == "in_use"    ? code::kBadArgument
+                                                  : code::kBadArgument;
+    return format_err(cmd, c, r.error().message);
+  }
+  e.from_features = true;
+  std::shared_ptr<const model::Model> m;
+  if (e.features.trackable()) {
+    auto built = e.features.build(e.name);
+    if (!built) return format_err(cmd, code::kBadArgument, built.error().message);
+    m = *built;
+  }
+  std::string ok = set_model(e, m, cmd);
+  if (ok.starts_with("ERR")) return ok;
+  return format_ok(cmd, fmt::format("object={} id={} junctions={} lines={} circles={}", e.name, id,
+                                    e.features.junction_count(), e.features.line_count(), e.features.circle_count()));
+}
+
+namespace {
+/// Feature commands need an object built feature by feature (or still empty).
+const char* feature_conflict(bool has_model, bool from_features) {
+  return has_model && !from_features ? "the object's model came from AddModel; features are added to objects built "
+                                       "with AddFeature only"
+                                     : nullptr;
+}
+}  // namespace
+
+std::string TrackingService::on(const protocol::AddJunction& c) {
+  ObjectEntry* e = find(c.object);
+  if (!e) return format_err("AddFeature", code::kUnknownObject, fmt::format("no object '{}'", c.object));
+  if (const char* why = feature_conflict(e->model != nullptr, e->from_features))
+    return format_err("AddFeature", code::kBadArgument, why);
+  if (e->features.junction_count() + e->features.line_count() + e->features.circle_count() >= opt_.max_features)
+    return format_err("AddFeature", code::kBusy, fmt::format("at most {} features per object", opt_.max_features));
+  auto r = e->features.add_junction(c.id, vec(c.p));
+  if (!r) return feature_changed(*e, "AddFeature", c.id, std::move(r));
+  e->from_features = true;
+  // A junction alone changes nothing the tracker sees: rebuild only when lines use it.
+  return format_ok("AddFeature", fmt::format("object={} id={} junctions={} lines={} circles={}", e->name, c.id,
+                                             e->features.junction_count(), e->features.line_count(),
+                                             e->features.circle_count()));
+}
+
+std::string TrackingService::on(const protocol::AddLine& c) {
+  ObjectEntry* e = find(c.object);
+  if (!e) return format_err("AddFeature", code::kUnknownObject, fmt::format("no object '{}'", c.object));
+  if (const char* why = feature_conflict(e->model != nullptr, e->from_features))
+    return format_err("AddFeature", code::kBadArgument, why);
+  if (e->features.junction_count() + e->features.line_count() + e->features.circle_count() >= opt_.max_features)
+    return format_err("AddFeature", code::kBusy, fmt::format("at most {} features per object", opt_.max_features));
+  return feature_changed(*e, "AddFeature", c.id, e->features.add_line(c.id, c.from, c.to));
+}
+
+std::string TrackingService::on(const protocol::AddCircle& c) {
+  ObjectEntry* e = find(c.object);
+  if (!e) return format_err("AddFeature", code::kUnknownObject, fmt::format("no object '{}'", c.object));
+  if (const char* why = feature_conflict(e->model != nullptr, e->from_features))
+    return format_err("AddFeature", code::kBadArgument, why);
+  if (e->features.junction_count() + e->features.line_count() + e->features.circle_count() >= opt_.max_features)
+    return format_err("AddFeature", code::kBusy, fmt::format("at most {} features per object", opt_.max_features));
+  return feature_changed(*e, "AddFeature", c.id, e->features.add_circle(c.id, vec(c.center), vec(c.normal), c.radius));
+}
+
+std::string TrackingService::on(const protocol::RemoveFeature& c) {
+  ObjectEntry* e = find(c.object);
+  if (!e) return format_err("RemoveFeature", code::kUnknownObject, fmt::format("no object '{}'", c.object));
+  if (!e->from_features)
+    return format_err("RemoveFeature", code::kUnknownFeature,
+                      fmt::format("object '{}' has no features added with AddFeature", c.object));
+  return feature_changed(*e, "RemoveFeature", c.id, e->features.remove(c.id));
+}
+
+std::string TrackingService::on(const protocol::SetPose& c) {
+  ObjectEntry* e = find(c.object);
+  if (!e) return format_err("SetPose", code::kUnknownObject, fmt::format("no object '{}'", c.object));
+  if (c.t[2] <= 0.0) return format_err("SetPose", code::kOutOfRange, "the pose puts the object behind the camera (tz <= 0)");
+  e->pose = geometry::SE3::from_rvec(vec(c.t), vec(c.r));
+  e->has_pose = true;
+  if (const long idx = scene_.find_object(c.object); idx >= 0) {
+    scene_.set_pose(static_cast<std::size_t>(idx), e->pose);
+    tracked_ = static_cast<int>(std::count_if(scene_.objects().begin(), scene_.objects().end(), [](const scene::Object& o) {
+      return o.status != scene::TrackStatus::kUninitialised;
+    }));
+  }
+  return format_ok("SetPose", fmt::format("object={} frame={}", c.object, next_frame_));
+}
+
+std::string TrackingService::on(const protocol::SetParam& c) {
+  if (!registry_.find(c.name)) {
+    auto r = registry_.set(c.name, c.value);  // its message names the nearest parameter
+    return format_err("SetParam", code::kUnknownParam, r ? "unknown parameter" : r.error().message);
+  }
+  if (auto r = registry_.set(c.name, c.value); !r) return format_err("SetParam", code::kBadValue, r.error().message);
+  cycle_.set_params(params_);
+  auto v = registry_.get(c.name);
+  return format_ok("SetParam", fmt::format("name={} value={}", c.name, format_value(v ? *v : c.value)));
+}
+
+std::string TrackingService::on(const protocol::GetParam& c) {
+  const ParamRegistry::Entry* e = registry_.find(c.name);
+  if (!e) {
+    auto r = registry_.set(c.name, "");  // for the nearest-name hint only; fails before setting
+    return format_err("GetParam", code::kUnknownParam, r ? "unknown parameter" : r.error().message);
+  }
+  auto v = registry_.get(c.name);
+  std::string extra = fmt::format("name={} value={}", c.name, format_value(v ? *v : std::string("?")));
+  if (!std::holds_alternative<bool*>(e->field))
+    extra += fmt::format(" min={} max={}", protocol::format_number(e->lo), protocol::format_number(e->hi));
+  if (!e->unit.empty()) extra += " unit=" + format_value(e->unit);
+  if (!e->doc.empty()) extra += " doc=" + format_value(e->doc);
+  return format_ok("GetParam", extra);
+}
+
+std::string TrackingService::on(const protocol::ListParams&) {
+  std::string extra = fmt::format("count={}", registry_.entries().size());
+  for (const ParamRegistry::Entry& e : registry_.entries()) {
+    auto v = registry_.get(e.name);
+    extra += fmt::format(" {}={}", e.name, format_value(v ? *v : std::string("?")));
+  }
+  return format_ok("ListParams", extra);
+}
+
+std::string TrackingService::on(const protocol::Start&) {
+  paused_ = false;
+  return format_ok("Start", fmt::format("frame={}{}", next_frame_, end_ ? " end=1" : ""));
+}
+
+std::string TrackingService::on(const protocol::Pause&) {
+  paused_ = true;
+  return format_ok("Pause", fmt::format("frame={}", next_frame_));
+}
+
+std::string TrackingService::on(const protocol::Display& c) {
+  display_ = c.on;
+  return format_ok("Display", c.on ? "on" : "off");
+}
+
+std::string TrackingService::on(const protocol::Log& c) {
+  if (log_) {
+    std::fclose(log_);
+    log_ = nullptr;
+  }
+  if (!c.on) return format_ok("Log", "off");
+  const std::string path = c.file.empty() ? opt_.default_log_file : c.file;
+  log_ = std::fopen(path.c_str(), "w");
+  if (!log_) return format_err("Log", code::kIoError, fmt::format("cannot open '{}' for writing", path));
+  std::fprintf(log_,
+               "frame,stamp_s,cycle_ms,visibility_ms,track_ms,solve_ms,degrade_level,features_dropped,objects,"
+               "features_visible,features_found,features_used,outliers,overruns\n");
+  std::fflush(log_);
+  return format_ok("Log", "on file=" + format_value(path));
+}
+
+void TrackingService::process_frame(Clock::time_point released) {
+  if (frame_.channels() == 3) {
+    cv::cvtColor(frame_, grey_, cv::COLOR_BGR2GRAY);
+  } else if (frame_.channels() == 4) {
+    cv::cvtColor(frame_, grey_, cv::COLOR_BGRA2GRAY);
+  } else {
+    grey_ = frame_;
+  }
+  const std::int64_t index = next_frame_++;
+  const double stamp = opt_.fps > 0.0 ? static_cast<double>(index) / opt_.fps : -1.0;
+  const pipeline::CameraImage img{io::as_view(grey_), io::as_colour_view(frame_)};
+  const pipeline::CycleReport& rep = cycle_.process(scene_, std::span<const pipeline::CameraImage>(&img, 1), stamp);
+
+  auto ev = std::make_shared<FrameEvents>();
+  ev->frame = index;
+  ev->stamp_s = rep.stamp_s;
+  ev->released = released;
+  ev->visibility_ms = rep.visibility_ms;
+  ev->track_ms = rep.track_ms;
+  ev->solve_ms = rep.solve_ms;
+  protocol::SystemStatusEvent& st = ev->status;
+  st.frame = static_cast<std::uint64_t>(index);
+  st.cycle_ms = rep.cycle_ms;
+  st.overruns = static_cast<std::uint64_t>(std::max<std::int64_t>(0, rep.overruns));
+  int visible = 0, tracked = 0;
+  const auto& objs = scene_.objects();
+  for (std::size_t i = 0; i < objs.size(); ++i) {
+    const scene::Object& o = objs[i];
+    if (o.status == scene::TrackStatus::kUninitialised) continue;
+    ++tracked;
+    const pipeline::ObjectReport& r = rep.objects[i];
+    st.features_found += static_cast<std::uint64_t>(std::max(0, r.features_found));
+    st.features_used += static_cast<std::uint64_t>(std::max(0, r.features_used));
+    st.outliers += static_cast<std::uint64_t>(std::max(0, r.outliers));
+    visible += r.features_visible;
+    protocol::ObjectPoseEvent p;
+    p.object = o.name;
+    p.frame = static_cast<std::uint64_t>(index);
+    p.stamp = rep.stamp_s;
+    const geometry::SE3 T_cam_obj = scene_.cameras()[0].T_ref_cam.inverse() * o.T_ref_obj;
+    const Eigen::Vector3d& t = T_cam_obj.translation();
+    const Eigen::Quaterniond& q = T_cam_obj.quaternion();
+    p.t = {t.x(), t.y(), t.z()};
+    p.q = {q.w(), q.x(), q.y(), q.z()};
+    for (int rr = 0; rr < 6; ++rr)
+      for (int cc = 0; cc < 6; ++cc) p.cov[static_cast<std::size_t>(rr * 6 + cc)] = o.covariance(rr, cc);
+    p.quality = std::isfinite(o.quality) ? std::clamp(o.quality, 0.0, 1.0) : 0.0;
+    p.status = to_protocol(o.status);
+    ev->pose_lines.push_back(shared_line(protocol::format(p)));
+    ev->poses.push_back(std::move(p));
+  }
+  tracked_ = tracked;
+  ev->status_line = shared_line(protocol::format(st));
+  if (on_frame_) on_frame_(ev);
+  frames_ = index + 1;
+
+  if (log_) {
+    std::fprintf(log_, "%lld,%.6f,%.4f,%.4f,%.4f,%.4f,%d,%d,%d,%d,%llu,%llu,%llu,%llu\n", static_cast<long long>(index),
+                 rep.stamp_s, rep.cycle_ms, rep.visibility_ms, rep.track_ms, rep.solve_ms, rep.degrade_level,
+                 rep.features_dropped, tracked, visible, static_cast<unsigned long long>(st.features_found),
+                 static_cast<unsigned long long>(st.features_used), static_cast<unsigned long long>(st.outliers),
+                 static_cast<unsigned long long>(st.overruns));
+    std::fflush(log_);
+  }
+  if (display_ && on_overlay_) {
+    auto vis = std::make_shared<cv::Mat>();
+    if (frame_.channels() == 3) {
+      frame_.copyTo(*vis);
+    } else {
+      cv::cvtColor(grey_, *vis, cv::COLOR_GRAY2BGR);
+    }
+    viz::draw_overlay(*vis, scene_, cycle_, 0, rep);
+    on_overlay_(std::move(vis), index);
+  }
+}
+
+}  // namespace v4r::server
