@@ -36,6 +36,16 @@ void draw_overlay(cv::Mat& bgr, const scene::Scene& scene, const pipeline::Visio
           prev = cur;
         }
       }
+      for (const scene::ArcFeature& a : view.arcs) {
+        if (!a.visible || a.samples < 2) continue;
+        const cv::Scalar colour = a.status == scene::FeatureStatus::kFound ? cv::Scalar(0, 255, 0) : cv::Scalar(0, 0, 255);
+        // Visible samples are a subset of evenly spaced ones: join neighbours only, not across gaps.
+        double step = 1e9;
+        for (int k = 0; k + 1 < a.samples; ++k) step = std::min(step, (a.X[k + 1] - a.X[k]).norm());
+        for (int k = 0; k + 1 < a.samples; ++k)
+          if ((a.X[k + 1] - a.X[k]).norm() < 1.5 * step)
+            cv::line(bgr, pt(K.project(T * a.X[k])), pt(K.project(T * a.X[k + 1])), colour, 1, cv::LINE_AA);
+      }
     }
     if (oi < report.objects.size()) {
       const pipeline::ObjectReport& r = report.objects[oi];
