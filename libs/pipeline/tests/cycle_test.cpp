@@ -118,18 +118,20 @@ TEST(VisionCycle, BudgetDegradesSamplesFirstThenFeaturesAndCountsOverruns) {
   EXPECT_EQ(r0.features_dropped, 0);
   const int visible = r0.objects[0].features_visible;
   ASSERT_GE(visible, 10);
-  // 1 us per sample: visible * 24 rows need ~visible*24 us; with 0.75 of the budget usable, a
-  // budget between visible*12 and visible*24 us degrades to fewer rows only.
+  // 1 us per sample: visible features need visible * rows us; with 0.75 of the budget usable, a
+  // budget between visible * reduced_rows and visible * rows us degrades to fewer rows only.
+  const double rows = p.track.rows, reduced = p.budget.reduced_rows;
+  ASSERT_LT(reduced, rows);
   sc.set_pose(0, s.truth[0]);
-  p.budget.cycle_ms = visible * 18.0 / 0.75 / 1000.0;
+  p.budget.cycle_ms = visible * 0.5 * (rows + reduced) / 0.75 / 1000.0;
   pipeline::VisionCycle tight(p, &fake_now);
   const auto& r1 = tight.process(sc, std::span(&img, 1));
   EXPECT_EQ(r1.degrade_level, 1);
   EXPECT_EQ(r1.features_dropped, 0);
   EXPECT_EQ(r1.objects[0].features_visible, visible);
-  // Below visible*12 us: features are left out too, shortest first, down to what fits.
+  // Below visible * reduced_rows us: features are left out too, shortest first, down to what fits.
   sc.set_pose(0, s.truth[0]);
-  p.budget.cycle_ms = 8 * 12.0 / 0.75 / 1000.0;
+  p.budget.cycle_ms = 8 * reduced / 0.75 / 1000.0;
   pipeline::VisionCycle tighter(p, &fake_now);
   const auto& r2 = tighter.process(sc, std::span(&img, 1));
   EXPECT_EQ(r2.degrade_level, 2);

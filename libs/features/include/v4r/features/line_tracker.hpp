@@ -14,7 +14,7 @@ namespace v4r::features {
 /// \brief Parameters of the oriented line-tracking window (paper 3.1, 3.4, 4.1). The window has
 /// a fixed size whatever the length of the edge, which bounds the cost of each feature.
 struct LineTrackerParams {
-  int rows = 24;               ///< samples along the edge (sub-image height); long edges are subsampled
+  int rows = 16;               ///< samples along the edge (sub-image height); long edges are subsampled
   int half_width = 10;         ///< search range across the edge, pixels each side (sub-image width 2w+1)
   double end_margin = 0.1;     ///< fraction of the segment left out at each end (corners, junctions)
   float min_gradient = 8.0f;   ///< minimum |Prewitt gradient| (grey levels per pixel) of an edge pixel

@@ -26,7 +26,7 @@ struct BudgetParams {
   double cycle_ms = 0.0;          ///< milliseconds per cycle; 0 = no budget
   double cost_per_sample_us = 0.6;  ///< predicted tracking cost of one window row / ellipse sample, microseconds
   bool adapt = true;              ///< learn cost_per_sample_us from measured tracking times
-  int reduced_rows = 12;          ///< rows per line window at degradation level 1
+  int reduced_rows = 10;          ///< rows per line window at degradation level 1
   double reserve_fraction = 0.25;  ///< part of the budget kept for visibility, pose and filter
 };
 
