@@ -5,7 +5,8 @@ DEB_PACKAGES := build-essential cmake ninja-build pkg-config libeigen3-dev libop
 	libcli11-dev libspdlog-dev libfmt-dev libyaml-cpp-dev libgtest-dev libgmock-dev libbenchmark-dev libassimp-dev
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 
-.PHONY: all deps configure build test demo bench clean
+.PHONY: all deps configure build test demo bench fuzz clean
+FUZZ_TIME ?= 30
 
 all: build
 
@@ -35,6 +36,11 @@ demo: build
 
 bench: build
 	$(BUILD)/bin/v4r_bench
+
+# Coverage-guided fuzzing of the protocol parser and the .cao reader (clang + libFuzzer), bounded in time.
+fuzz: deps
+	@command -v clang++ >/dev/null || $(SUDO) apt-get install -y -qq --no-install-recommends clang libclang-rt-14-dev
+	fuzz/run.sh $(FUZZ_TIME)
 
 clean:
 	rm -rf $(BUILD)

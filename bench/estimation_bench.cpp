@@ -109,7 +109,8 @@ Frame make_mixed_frame(unsigned seed) {
   }
   for (int i = 0; i < 3; ++i) {
     const Eigen::Vector3d n = Eigen::Vector3d(n01(rng), n01(rng), n01(rng)).normalized();
-    f.normals.push_back({n, (T.quaternion() * n + 0.02 * Eigen::Vector3d(n01(rng), n01(rng), n01(rng))).normalized(), 0.02});
+    const Eigen::Vector3d noise3(n01(rng), n01(rng), n01(rng));
+    f.normals.push_back({n, (T.quaternion() * n + 0.02 * noise3).normalized(), 0.02});
   }
   Vector6d d;
   d << 0.006, -0.005, 0.006, 0.025, 0.02, -0.025;

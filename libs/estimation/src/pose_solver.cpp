@@ -12,6 +12,11 @@
 // scale s = sqrt(-ln P(chi2_m > t)), the RMS of a 2-residual observation with the same tail
 // probability (s = sqrt(t / 2) for m = 2, the original per-observation RMS).
 //
+// Every Gauss-Newton step is checked: it must not increase the objective it minimised (the
+// point and line weights, which depend on depth, frozen at the step's start as in Wunsch's
+// method; circle residuals carry their pose-dependent weight in the Jacobian), else it is halved.
+// Points and lines rarely need this; circle edge points far from the solution do.
+//
 // Solve flow:
 //   1. prepare: reject invalid input (non-finite, sigma <= 0, coincident line points, zero
 //      normals, radius <= 0), cache the line-of-sight bases of the points, the interpretation-
@@ -258,8 +263,6 @@ void PoseSolver::evaluate(const ObservationSet& obs, std::size_t slot, const SE3
   e.rw.setZero();
   if (jacobian) e.Jw.setZero();
   e.m = 0;
-  e.sigma_px = 0.0;
-  e.behind = false;
   e.depth.setOnes();
   const ResidualWeighting w = weighting(p_);
   const Eigen::Vector3d& t = T.translation();
@@ -269,12 +272,11 @@ void PoseSolver::evaluate(const ObservationSet& obs, std::size_t slot, const SE3
       Eigen::Vector2d rw;
       Matrix26d J;
       const Eigen::Vector3d p = R * o.X_obj + t;
-      e.behind = normalised_point_residual(p, point_bases_[i], o.sigma_px, w, rw, jacobian ? &J : nullptr);
+      normalised_point_residual(p, point_bases_[i], o.sigma_px, w, rw, jacobian ? &J : nullptr);
       e.depth = Eigen::Vector2d::Constant(std::max(p.z(), w.min_depth));
       e.rw.head<2>() = rw;
       if (jacobian) e.Jw.topRows<2>() = J;
       e.m = 2;
-      e.sigma_px = o.sigma_px;
       break;
     }
     case Kind::kLine: {
@@ -282,12 +284,11 @@ void PoseSolver::evaluate(const ObservationSet& obs, std::size_t slot, const SE3
       Eigen::Vector2d rw;
       Matrix26d J;
       const Eigen::Vector3d p1 = R * o.X1_obj + t, p2 = R * o.X2_obj + t;
-      e.behind = normalised_line_residual(p1, p2, line_normals_[i], o.sigma_px, w, rw, jacobian ? &J : nullptr);
+      normalised_line_residual(p1, p2, line_normals_[i], o.sigma_px, w, rw, jacobian ? &J : nullptr);
       e.depth = Eigen::Vector2d(std::max(p1.z(), w.min_depth), std::max(p2.z(), w.min_depth));
       e.rw.head<2>() = rw;
       if (jacobian) e.Jw.topRows<2>() = J;
       e.m = 2;
-      e.sigma_px = o.sigma_px;
       break;
     }
     case Kind::kCircle: {
@@ -300,7 +301,6 @@ void PoseSolver::evaluate(const ObservationSet& obs, std::size_t slot, const SE3
       e.rw(0) = rw;
       if (jacobian) e.Jw.row(0) = J;
       e.m = 1;
-      e.sigma_px = o.sigma_px;
       break;
     }
     case Kind::kPoint3: {
@@ -335,8 +335,9 @@ namespace {
 
 /// H += rho J^T J (upper triangle; mirrored by the caller), g += rho J^T r for M residuals.
 template <int M>
-[[gnu::always_inline]] inline void accumulate(const Eigen::Matrix<double, M, 1>& rw, const Eigen::Matrix<double, M, 6>& Jw, double rho,
-                Matrix6d& H, Vector6d& g) {
+[[gnu::always_inline]] inline void accumulate(const Eigen::Matrix<double, M, 1>& rw,
+                                              const Eigen::Matrix<double, M, 6>& Jw, double rho, Matrix6d& H,
+                                              Vector6d& g) {
   for (int k = 0; k < M; ++k) {
     for (int i = 0; i < 6; ++i) {
       const double a = rho * Jw(k, i);

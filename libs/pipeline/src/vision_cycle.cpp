@@ -610,10 +610,12 @@ void VisionCycle::fuse_and_filter(scene::Scene& scene, scene::Object& obj, Objec
       // renderer-free reality of a camera allows (0.1 mm, 0.02 degrees).
       geometry::Matrix6d floor = geometry::Matrix6d::Zero();
       floor.diagonal() << 1e-8, 1e-8, 1e-8, 1e-7, 1e-7, 1e-7;
-      const double chi2 = obj.filter.update(T_meas, cov_meas + floor);
+      const double chi2 = obj.filter.innovation_chi2(T_meas, cov_meas + floor);
       if (ratio < p_.degraded_ratio && chi2 > p_.recovery.gate_chi2) {
         accept = false;  // a weak measurement far from the prediction: more likely wrong than right
         rep.measurement_rejected = true;
+      } else {
+        obj.filter.update(T_meas, cov_meas + floor);
       }
     }
   }
@@ -631,11 +633,7 @@ void VisionCycle::fuse_and_filter(scene::Scene& scene, scene::Object& obj, Objec
   }
   obj.bad_frames = obj.status == scene::TrackStatus::kTracking ? 0 : obj.bad_frames + 1;
   if (p_.use_filter) {
-    if (!accept && obj.bad_frames >= p_.recovery.reset_velocity_after) {
-      geometry::Matrix6d cov = geometry::Matrix6d::Zero();
-      cov.diagonal() << 1e-4, 1e-4, 1e-4, 1e-3, 1e-3, 1e-3;
-      obj.filter.reset(obj.T_ref_obj, cov);
-    }
+    if (!accept && obj.bad_frames >= p_.recovery.reset_velocity_after) obj.filter.reset_velocity();
     obj.T_ref_obj_filtered = obj.filter.pose();
     obj.velocity = obj.filter.velocity();
   } else {

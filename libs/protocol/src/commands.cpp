@@ -34,7 +34,7 @@ ParseResult parse_name_only(Args& a, std::string_view key, bool remove) {
 ParseResult parse_add_object(Args& a) { return parse_name_only(a, "name", false); }
 ParseResult parse_remove_object(Args& a) { return parse_name_only(a, "name", true); }
 
-constexpr std::initializer_list<std::string_view> kFormats = {"cao", "obj", "ply", "stl"};
+ModelFormat read_format(Args& a) { return static_cast<ModelFormat>(a.word("format", {"cao", "obj", "ply", "stl"})); }
 
 ParseResult parse_add_model(Args& a) {
   a.check_keys({"object", "format", "bytes", "path"});
@@ -50,7 +50,7 @@ ParseResult parse_add_model(Args& a) {
   if (bytes != nullptr) {
     AddModelInline c;
     c.object = std::move(object);
-    c.format = static_cast<ModelFormat>(a.word("format", kFormats));
+    c.format = read_format(a);
     const std::uint64_t n = a.whole("bytes");
     if (a.ok() && n == 0) a.fail(code::kOutOfRange, "bytes=: must be at least 1", bytes->value_column);
     if (a.ok() && n > kMaxPayloadBytes)
@@ -63,7 +63,7 @@ ParseResult parse_add_model(Args& a) {
   AddModelPath c;
   c.object = std::move(object);
   c.path = a.text("path");
-  if (a.has("format")) c.format = static_cast<ModelFormat>(a.word("format", kFormats));
+  if (a.has("format")) c.format = read_format(a);
   return done(a, std::move(c));
 }
 
@@ -127,13 +127,13 @@ ParseResult parse_set_pose(Args& a) {
   return done(a, std::move(c));
 }
 
-constexpr std::initializer_list<std::string_view> kTopics = {"ObjectPose", "SystemStatus"};
+Topic read_topic(Args& a) { return static_cast<Topic>(a.word("what", {"ObjectPose", "SystemStatus"})); }
 
 ParseResult parse_subscribe(Args& a) {
   a.check_keys({"what", "rate"});
   a.require({"what"});
   Subscribe c;
-  c.what = static_cast<Topic>(a.word("what", kTopics));
+  c.what = read_topic(a);
   if (a.has("rate")) {
     c.rate_hz = a.number("rate") + 0.0;  // -0 -> 0
     if (a.ok() && c.rate_hz < 0.0)
@@ -146,7 +146,7 @@ ParseResult parse_unsubscribe(Args& a) {
   a.check_keys({"what"});
   a.require({"what"});
   Unsubscribe c;
-  c.what = static_cast<Topic>(a.word("what", kTopics));
+  c.what = read_topic(a);
   return done(a, c);
 }
 
@@ -182,7 +182,8 @@ bool on_off(Args& a) {
   }
   if (words[0]->value == "on") return true;
   if (words[0]->value != "off")
-    a.fail(code::kBadArgument, "'" + detail::echo(words[0]->value) + "' is not on|off", words[0]->column);
+    a.fail(code::kBadArgument, std::string(1, '\'').append(detail::echo(words[0]->value)).append("' is not on|off"),
+           words[0]->column);
   return false;
 }
 

@@ -10,7 +10,8 @@ namespace {
 bool is_digit(char c) { return c >= '0' && c <= '9'; }
 bool is_alpha(char c) { return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z'); }
 bool is_printable(unsigned char c) { return c >= 0x20 && c <= 0x7E; }
-bool is_key_char(char c) { return is_alpha(c) || is_digit(c) || c == '_'; }
+bool is_word_char(char c) { return is_alpha(c) || is_digit(c) || c == '_'; }
+bool is_key_char(char c) { return is_word_char(c) || c == '.' || c == '-'; }
 
 std::string col(std::size_t column) { return " (column " + std::to_string(column) + ")"; }
 
@@ -47,7 +48,7 @@ std::string command_word(std::string_view line) {
   while (i < line.size() && line[i] == ' ') ++i;
   std::size_t start = i;
   if (i >= line.size() || !is_alpha(line[i])) return "?";
-  while (i < line.size() && is_key_char(line[i])) ++i;
+  while (i < line.size() && is_word_char(line[i])) ++i;
   if (i - start > kMaxNameBytes) return "?";
   if (i < line.size() && line[i] != ' ') return "?";
   return std::string(line.substr(start, i - start));
@@ -259,22 +260,24 @@ void Args::check_keys(std::initializer_list<std::string_view> allowed, std::size
         fail(code::kBadSyntax, "unexpected word '" + echo(t.value) + "' (arguments are key=value)", t.column);
       continue;
     }
-    for (std::size_t j = 0; j < i; ++j) {
-      if (!tokens_[j].positional && tokens_[j].key == t.key) {
-        fail(code::kDuplicateArgument, t.key + "= given twice", t.column);
-        break;
-      }
-    }
-    if (!ok() || ignore_unknown) continue;
     bool known = false;
     for (std::string_view a : allowed) known = known || (a == t.key);
-    if (!known) {
-      std::string list;
-      for (std::string_view a : allowed) list += (list.empty() ? "" : " ") + std::string(a) + "=";
-      fail(code::kUnknownArgument,
-           "unknown argument '" + echo(t.key) + "=' for " + command_ + (list.empty() ? " (takes none)" : " (takes " + list + ")"),
-           t.column);
+    if (!known && ignore_unknown) continue;
+    if (known) {
+      // Only known keys are compared, so this stays linear in the number of words.
+      for (std::size_t j = 0; j < i; ++j) {
+        if (!tokens_[j].positional && tokens_[j].key == t.key) {
+          fail(code::kDuplicateArgument, t.key + "= given twice", t.column);
+          break;
+        }
+      }
+      continue;
     }
+    std::string list;
+    for (std::string_view a : allowed) list.append(list.empty() ? "" : " ").append(a).append("=");
+    fail(code::kUnknownArgument,
+         "unknown argument '" + echo(t.key) + "=' for " + command_ + (list.empty() ? " (takes none)" : " (takes " + list + ")"),
+         t.column);
   }
 }
 
@@ -378,7 +381,7 @@ std::size_t Args::word(std::string_view key, std::initializer_list<std::string_v
   std::string list;
   for (std::string_view w : words) {
     if (w == t->value) return i;
-    list += (list.empty() ? "" : "|") + std::string(w);
+    list.append(list.empty() ? "" : "|").append(w);
     ++i;
   }
   fail(code::kBadArgument, std::string(key) + "=: '" + echo(t->value) + "' is not one of " + list, t->value_column);

@@ -53,7 +53,7 @@ struct NormalObservation {
 /// then treated as an outlier.
 struct CircleObservation {
   Eigen::Vector3d center_obj = Eigen::Vector3d::Zero();    ///< circle centre, object frame, metres
-  Eigen::Vector3d normal_obj = Eigen::Vector3d::UnitZ();   ///< axis of the circle, object frame (normalised by the solver)
+  Eigen::Vector3d normal_obj = Eigen::Vector3d::UnitZ();   ///< circle axis, object frame (normalised by the solver)
   double radius = 0.0;                                     ///< metres, > 0
   Eigen::Vector2d xn = Eigen::Vector2d::Zero();            ///< edge point, undistorted normalised image coordinates
   double sigma_px = 1.0;                                   ///< a-priori image noise of the edge point, pixels
@@ -163,7 +163,12 @@ class PoseSolver {
   /// over its own standard deviation, I - J H^-1 J^T; for observations with m scalar residuals
   /// the chi-square value r^T Q^-1 r mapped to the common scale, see PoseSolverParams) while it
   /// exceeds the threshold; once, rejected observations whose prediction error is within the
-  /// threshold are re-admitted and the loop repeats.
+  /// threshold are re-admitted and the loop repeats. Gauss-Newton steps that would increase
+  /// their objective are halved (up to 10 times).
+  ///
+  /// Convergence basin: points, lines and 3-D points converge from several centimetres and tens
+  /// of degrees; a circle edge point is described well only while the pose error moves the
+  /// circle by clearly less than its radius (with circles alone, start within a few mm).
   PoseResult solve(const geometry::SE3& T_init, const ObservationSet& obs, const InlierFlags& flags = {});
 
   /// 2-D points and lines only (the original interface); same as solve(T_init, {points, lines},
@@ -193,8 +198,6 @@ class PoseSolver {
     Eigen::Vector3d rw = Eigen::Vector3d::Zero();  ///< normalised residuals
     Eigen::Matrix<double, 3, 6> Jw;                ///< normalised Jacobian (when requested)
     int m = 0;               ///< scalar residuals (0: unusable at this pose)
-    double sigma_px = 0.0;   ///< a-priori pixel sigma of image observations, 0 otherwise
-    bool behind = false;     ///< a 2-D point or line point at or behind the camera
     Eigen::Vector2d depth = Eigen::Vector2d::Ones();  ///< depths (m, clamped) behind the weights of points / lines
   };
   enum class Kind : std::uint8_t { kPoint, kLine, kCircle, kPoint3, kNormal };

@@ -71,7 +71,8 @@ class SE3 {
       c = 1.0 / 6.0 - th2 / 120.0;
     } else {
       const double th = std::sqrt(th2);
-      b = (1.0 - std::cos(th)) / th2;
+      const double sh = std::sin(0.5 * th);
+      b = 2.0 * sh * sh / th2;  // (1 - cos th) / th^2 without cancellation
       c = (th - std::sin(th)) / (th2 * th);
     }
     const Eigen::Matrix3d V = Eigen::Matrix3d::Identity() + b * W + c * W * W;
@@ -84,11 +85,12 @@ class SE3 {
     const double th2 = w.squaredNorm();
     const Eigen::Matrix3d W = hat(w);
     Eigen::Matrix3d Vinv;
-    if (th2 < 1e-12) {
+    if (th2 < 1e-8) {
       Vinv = Eigen::Matrix3d::Identity() - 0.5 * W + W * W / 12.0;
     } else {
       const double th = std::sqrt(th2);
-      const double k = (1.0 - th * std::sin(th) / (2.0 * (1.0 - std::cos(th)))) / th2;
+      // (1 - th sin th / (2 (1 - cos th))) / th^2, written without the cancellation of 1 - cos.
+      const double k = (1.0 - 0.5 * th / std::tan(0.5 * th)) / th2;
       Vinv = Eigen::Matrix3d::Identity() - 0.5 * W + k * W * W;
     }
     Vector6d xi;

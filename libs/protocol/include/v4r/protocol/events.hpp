@@ -51,12 +51,13 @@ struct HelloMessage {
   bool operator==(const HelloMessage&) const = default;
 };
 
-/// \brief `OK <Command> key=value...` or `ERR <Command> code=<word> msg="..." ...`.
+/// \brief `OK <Command> [word...] [key=value...]` or `ERR <Command> code=<word> msg="..." ...`.
 struct Reply {
   bool ok = true;
   std::string command;
   std::string code;     ///< ERR only
   std::string message;  ///< ERR only, unescaped
+  std::vector<std::string> words;  ///< words without '=' after the command (`OK Display on`)
   std::vector<std::pair<std::string, std::string>> fields;  ///< other key=value words, in order, unescaped
   /// Value of a field, or nullptr.
   [[nodiscard]] const std::string* find(std::string_view key) const;
