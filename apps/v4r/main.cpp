@@ -23,6 +23,10 @@
 namespace fs = std::filesystem;
 using namespace v4r;
 
+namespace v4r::app {
+void add_serve_command(CLI::App& app, int& exit_code);  // serve.cpp
+}  // namespace v4r::app
+
 namespace {
 
 struct RenderArgs {
@@ -250,6 +254,10 @@ int main(int argc, char** argv) {
     config->add_option("--config", cfg_in, "Start from this YAML file");
     config->add_option("--set", cfg_sets, "Set one parameter: --set track.rows=32 (repeatable)");
 
+    int serve_exit = 0;
+    app::add_serve_command(app, serve_exit);
+    auto* serve = app.get_subcommand("serve");
+
     std::string inspect_path;
     auto* inspect = app.add_subcommand("inspect-model", "Load a model and print its features");
     inspect->add_option("model", inspect_path, "Model file")->required();
@@ -281,6 +289,7 @@ int main(int argc, char** argv) {
       fmt::print("# v4r tracker configuration (v4r track --config FILE)\n{}", pipeline::make_registry(params).to_yaml());
       return 0;
     }
+    if (*serve) return serve_exit;
     if (*render) return cmd_render(ra);
     if (*demo) return cmd_demo(demo_out);
     if (*bench) return cmd_bench(ba, repeat, bench_budget);

@@ -3,7 +3,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <string_view>
+#include <unordered_map>
 
+#include <Eigen/Geometry>
 #include <fmt/format.h>
 
 namespace v4r::server {
@@ -21,12 +24,6 @@ constexpr double kMinEdgeLength = 1e-6;  // metres: shorter lines are degenerate
 
 }  // namespace
 
-bool FeatureModel::contains(const std::string& id) const {
-  return junction_index(id) >= 0 ||
-         std::any_of(lines_.begin(), lines_.end(), [&](const LineDef& l) { return l.id == id; }) ||
-         std::any_of(circles_.begin(), circles_.end(), [&](const CircleDef& c) { return c.id == id; });
-}
-
 long FeatureModel::junction_index(const std::string& id) const {
   for (std::size_t i = 0; i < junctions_.size(); ++i)
     if (junctions_[i].id == id) return static_cast<long>(i);
@@ -38,6 +35,7 @@ Expected<void> FeatureModel::add_junction(const std::string& id, const Eigen::Ve
   if (contains(id)) return fail("exists", fmt::format("feature '{}' exists already", id));
   if (!p.allFinite()) return fail("invalid", fmt::format("junction '{}': coordinates must be finite", id));
   junctions_.push_back({id, p});
+  ids_.insert(id);
   return {};
 }
 
@@ -51,6 +49,7 @@ Expected<void> FeatureModel::add_line(const std::string& id, const std::string& 
   if ((junctions_[a].p - junctions_[b].p).norm() < kMinEdgeLength)
     return fail("invalid", fmt::format("line '{}': junctions '{}' and '{}' are at the same position", id, from, to));
   lines_.push_back({id, from, to});
+  ids_.insert(id);
   return {};
 }
 
@@ -63,25 +62,30 @@ Expected<void> FeatureModel::add_circle(const std::string& id, const Eigen::Vect
   if (normal.norm() < 1e-9) return fail("invalid", fmt::format("circle '{}': the normal is zero", id));
   if (radius <= 0.0) return fail("invalid", fmt::format("circle '{}': the radius must be > 0", id));
   circles_.push_back({id, center, normal.normalized(), radius});
+  ids_.insert(id);
   return {};
 }
 
 Expected<void> FeatureModel::remove(const std::string& id) {
+  if (!contains(id)) return fail("not_found", fmt::format("no feature '{}'", id));
   if (const long j = junction_index(id); j >= 0) {
     for (const LineDef& l : lines_)
       if (l.from == id || l.to == id)
         return fail("in_use", fmt::format("junction '{}' is used by line '{}': remove the line first", id, l.id));
     junctions_.erase(junctions_.begin() + j);
+    ids_.erase(id);
     return {};
   }
   if (auto it = std::find_if(lines_.begin(), lines_.end(), [&](const LineDef& l) { return l.id == id; });
       it != lines_.end()) {
     lines_.erase(it);
+    ids_.erase(id);
     return {};
   }
   if (auto it = std::find_if(circles_.begin(), circles_.end(), [&](const CircleDef& c) { return c.id == id; });
       it != circles_.end()) {
     circles_.erase(it);
+    ids_.erase(id);
     return {};
   }
   return fail("not_found", fmt::format("no feature '{}'", id));
@@ -89,7 +93,10 @@ Expected<void> FeatureModel::remove(const std::string& id) {
 
 Expected<std::shared_ptr<const model::Model>> FeatureModel::build(const std::string& name) const {
   model::ModelBuilder b(name);
+  std::unordered_map<std::string_view, model::Index> index;
+  index.reserve(junctions_.size());
   for (const JunctionDef& j : junctions_) {
+    index.emplace(j.id, static_cast<model::Index>(index.size()));
     model::Attributes attr;
     attr.name = j.id;
     b.add_junction(j.p, std::move(attr));
@@ -97,8 +104,7 @@ Expected<std::shared_ptr<const model::Model>> FeatureModel::build(const std::str
   for (const LineDef& l : lines_) {
     model::Attributes attr;
     attr.name = l.id;
-    b.add_line(static_cast<model::Index>(junction_index(l.from)), static_cast<model::Index>(junction_index(l.to)),
-               std::move(attr));
+    b.add_line(index.at(l.from), index.at(l.to), std::move(attr));
   }
   for (const CircleDef& c : circles_) {
     model::CircleArc arc;

@@ -64,6 +64,12 @@ void replace_model(scene::Scene& scene, std::size_t i, std::shared_ptr<const mod
 
 Eigen::Vector3d vec(const protocol::Vec3& v) { return {v[0], v[1], v[2]}; }
 
+/// First line of the `Log on` CSV.
+constexpr char kLogHeader[] =
+    "frame,stamp_s,cycle_ms,visibility_ms,track_ms,solve_ms,degrade_level,features_dropped,objects,"
+    "features_visible,features_found,features_used,outliers,observations_found,observations_used,"
+    "observation_outliers,overruns\n";
+
 }  // namespace
 
 TrackingService::TrackingService(ServiceOptions opt, std::unique_ptr<io::FrameSource> source)
@@ -137,6 +143,7 @@ void TrackingService::run(std::stop_token st) {
         if (wake_.wait_until(lock, st, due_, [&] { return !queue_.empty(); }) || st.stop_requested()) continue;
       }
     }
+    rebuild_models();
     const Clock::time_point released = Clock::now();
     process_frame(released);
     have_frame_ = false;
@@ -185,6 +192,10 @@ std::string TrackingService::apply(const Request& r) {
   if (const auto* m = std::get_if<ModelReady>(&r)) {
     ObjectEntry* e = find(m->object);
     if (!e) return format_err("AddModel", code::kUnknownObject, fmt::format("no object '{}'", m->object));
+    // A whole model replaces whatever the object had, including features added one by one.
+    e->from_features = false;
+    e->dirty = false;
+    e->features = FeatureModel();
     return set_model(*e, m->model, "AddModel");
   }
   return apply_command(std::get<protocol::Command>(r));
@@ -262,23 +273,31 @@ std::string TrackingService::on(const protocol::RemoveObject& c) {
 std::string TrackingService::feature_changed(ObjectEntry& e, const char* cmd, const std::string& id, Expected<void> r) {
   if (!r) {
     const std::string& f = r.error().field;
-    const std::string_view c = f == "exists"      ? code::kExists
-                               : f == "not_found" ? code::kUnknownFeature
-                               : f == "in_use"    ? code::kBadArgument
-                                                  : code::kBadArgument;
+    const std::string_view c = f == "exists" ? code::kExists : f == "not_found" ? code::kUnknownFeature : code::kBadArgument;
     return format_err(cmd, c, r.error().message);
   }
   e.from_features = true;
-  std::shared_ptr<const model::Model> m;
-  if (e.features.trackable()) {
-    auto built = e.features.build(e.name);
-    if (!built) return format_err(cmd, code::kBadArgument, built.error().message);
-    m = *built;
-  }
-  std::string ok = set_model(e, m, cmd);
-  if (ok.starts_with("ERR")) return ok;
+  e.dirty = true;
   return format_ok(cmd, fmt::format("object={} id={} junctions={} lines={} circles={}", e.name, id,
                                     e.features.junction_count(), e.features.line_count(), e.features.circle_count()));
+}
+
+void TrackingService::rebuild_models() {
+  for (ObjectEntry& e : objects_) {
+    if (!e.dirty) continue;
+    e.dirty = false;
+    std::shared_ptr<const model::Model> m;
+    if (e.features.trackable()) {
+      auto built = e.features.build(e.name);
+      if (!built) {
+        // The features were validated one by one, so this is not expected: keep the last model.
+        V4R_LOG_ERROR("v4r serve: object {}: cannot rebuild the model: {}", e.name, built.error().to_string());
+        continue;
+      }
+      m = *built;
+    }
+    (void)set_model(e, std::move(m), "AddFeature");
+  }
 }
 
 namespace {
@@ -407,11 +426,18 @@ std::string TrackingService::on(const protocol::Log& c) {
   }
   if (!c.on) return format_ok("Log", "off");
   const std::string path = c.file.empty() ? opt_.default_log_file : c.file;
+  // A client names the file: never truncate anything but an earlier cycle log.
+  if (std::FILE* old = std::fopen(path.c_str(), "rb")) {
+    char first[sizeof kLogHeader] = {};
+    const std::size_t n = std::fread(first, 1, sizeof kLogHeader - 1, old);
+    std::fclose(old);
+    if (n > 0 && std::string_view(first, n) != std::string_view(kLogHeader).substr(0, n))
+      return format_err("Log", code::kIoError,
+                        fmt::format("'{}' exists and is not a v4r cycle log: not overwritten", path));
+  }
   log_ = std::fopen(path.c_str(), "w");
   if (!log_) return format_err("Log", code::kIoError, fmt::format("cannot open '{}' for writing", path));
-  std::fprintf(log_,
-               "frame,stamp_s,cycle_ms,visibility_ms,track_ms,solve_ms,degrade_level,features_dropped,objects,"
-               "features_visible,features_found,features_used,outliers,overruns\n");
+  std::fputs(kLogHeader, log_);
   std::fflush(log_);
   return format_ok("Log", "on file=" + format_value(path));
 }
@@ -440,17 +466,28 @@ void TrackingService::process_frame(Clock::time_point released) {
   st.frame = static_cast<std::uint64_t>(index);
   st.cycle_ms = rep.cycle_ms;
   st.overruns = static_cast<std::uint64_t>(std::max<std::int64_t>(0, rep.overruns));
-  int visible = 0, tracked = 0;
+  int visible = 0, tracked = 0, found_obs = 0, used_obs = 0, outlier_obs = 0;
   const auto& objs = scene_.objects();
   for (std::size_t i = 0; i < objs.size(); ++i) {
     const scene::Object& o = objs[i];
     if (o.status == scene::TrackStatus::kUninitialised) continue;
     ++tracked;
     const pipeline::ObjectReport& r = rep.objects[i];
-    st.features_found += static_cast<std::uint64_t>(std::max(0, r.features_found));
-    st.features_used += static_cast<std::uint64_t>(std::max(0, r.features_used));
-    st.outliers += static_cast<std::uint64_t>(std::max(0, r.outliers));
     visible += r.features_visible;
+    found_obs += r.features_found;
+    used_obs += r.features_used;
+    outlier_obs += r.outliers;
+    // The protocol counts features (edges, circles), not solver observations: a tracked feature
+    // is used, or an outlier when the solver rejected it.
+    for (const scene::View& v : o.views) {
+      for (const scene::LineFeature& f : v.lines) {
+        if (!f.visible || f.ambiguous || f.dropped) continue;
+        if (f.status == scene::FeatureStatus::kFound) ++st.features_used;
+        if (f.status == scene::FeatureStatus::kOutlier) ++st.outliers;
+      }
+      for (const scene::ArcFeature& a : v.arcs)
+        if (a.visible && !a.dropped && a.status == scene::FeatureStatus::kFound) ++st.features_used;
+    }
     protocol::ObjectPoseEvent p;
     p.object = o.name;
     p.frame = static_cast<std::uint64_t>(index);
@@ -467,16 +504,18 @@ void TrackingService::process_frame(Clock::time_point released) {
     ev->pose_lines.push_back(shared_line(protocol::format(p)));
     ev->poses.push_back(std::move(p));
   }
+  st.features_found = st.features_used + st.outliers;
   tracked_ = tracked;
   ev->status_line = shared_line(protocol::format(st));
   if (on_frame_) on_frame_(ev);
   frames_ = index + 1;
 
   if (log_) {
-    std::fprintf(log_, "%lld,%.6f,%.4f,%.4f,%.4f,%.4f,%d,%d,%d,%d,%llu,%llu,%llu,%llu\n", static_cast<long long>(index),
-                 rep.stamp_s, rep.cycle_ms, rep.visibility_ms, rep.track_ms, rep.solve_ms, rep.degrade_level,
-                 rep.features_dropped, tracked, visible, static_cast<unsigned long long>(st.features_found),
-                 static_cast<unsigned long long>(st.features_used), static_cast<unsigned long long>(st.outliers),
+    std::fprintf(log_, "%lld,%.6f,%.4f,%.4f,%.4f,%.4f,%d,%d,%d,%d,%llu,%llu,%llu,%d,%d,%d,%llu\n",
+                 static_cast<long long>(index), rep.stamp_s, rep.cycle_ms, rep.visibility_ms, rep.track_ms,
+                 rep.solve_ms, rep.degrade_level, rep.features_dropped, tracked, visible,
+                 static_cast<unsigned long long>(st.features_found), static_cast<unsigned long long>(st.features_used),
+                 static_cast<unsigned long long>(st.outliers), found_obs, used_obs, outlier_obs,
                  static_cast<unsigned long long>(st.overruns));
     std::fflush(log_);
   }

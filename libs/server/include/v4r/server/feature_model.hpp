@@ -4,6 +4,7 @@
 #include <cstddef>
 #include <memory>
 #include <string>
+#include <unordered_set>
 #include <vector>
 
 #include <Eigen/Core>
@@ -30,14 +31,15 @@ class FeatureModel {
   /// Removes a feature. A junction still used by a line cannot be removed (remove the lines first).
   Expected<void> remove(const std::string& id);
 
-  [[nodiscard]] bool contains(const std::string& id) const;
+  [[nodiscard]] bool contains(const std::string& id) const { return ids_.count(id) > 0; }
   [[nodiscard]] std::size_t junction_count() const { return junctions_.size(); }
   [[nodiscard]] std::size_t line_count() const { return lines_.size(); }
   [[nodiscard]] std::size_t circle_count() const { return circles_.size(); }
   /// True when there is something to track (a line or a circle).
   [[nodiscard]] bool trackable() const { return !lines_.empty() || !circles_.empty(); }
 
-  /// Builds the Model (named `name`); junctions keep their ids as attribute names.
+  /// Builds the Model (named `name`) in time linear in the number of features; features keep
+  /// their ids as attribute names.
   [[nodiscard]] Expected<std::shared_ptr<const model::Model>> build(const std::string& name) const;
 
  private:
@@ -55,6 +57,7 @@ class FeatureModel {
   };
   [[nodiscard]] long junction_index(const std::string& id) const;
 
+  std::unordered_set<std::string> ids_;  // every feature id, for O(1) duplicate checks
   std::vector<JunctionDef> junctions_;
   std::vector<LineDef> lines_;
   std::vector<CircleDef> circles_;

@@ -38,7 +38,7 @@ struct ServiceOptions {
   pipeline::CycleParams params;    ///< initial tracker parameters
   std::string default_log_file = "v4r_cycles.csv";  ///< `Log on` without file=
   std::size_t max_objects = 64;    ///< AddObject beyond this: ERR code=busy
-  std::size_t max_features = 20000;  ///< AddFeature beyond this many features per object: ERR code=busy
+  std::size_t max_features = 10000;  ///< AddFeature beyond this many features per object: ERR code=busy
 };
 
 /// \brief Everything one frame produced for the clients, formatted once and shared by all of them.
@@ -113,6 +113,7 @@ class TrackingService {
     std::shared_ptr<const model::Model> model;  ///< null until AddModel or the first line/circle
     bool from_features = false;                 ///< built with AddFeature
     FeatureModel features;
+    bool dirty = false;                         ///< features changed: rebuild before the next frame
     bool has_pose = false;
     geometry::SE3 pose;  ///< last SetPose (T_cam_obj), applied when the model arrives
   };
@@ -127,6 +128,7 @@ class TrackingService {
   std::string apply_command(const protocol::Command& c);
   std::string set_model(ObjectEntry& e, std::shared_ptr<const model::Model> m, std::string_view cmd);
   void load_next_frame();
+  void rebuild_models();
   void process_frame(Clock::time_point released);
   ObjectEntry* find(const std::string& name);
 

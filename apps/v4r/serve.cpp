@@ -1,0 +1,106 @@
+// v4r - robust model-based object tracking. MIT licence.
+// `v4r serve`: the tracker as a TCP service (docs/protocol.md).
+// Compiled only once apps/v4r links v4r::server (until then the header is not on the path).
+#if __has_include("v4r/server/server.hpp")
+#include <cstdlib>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+
+#include "v4r/io/camera_io.hpp"
+#include "v4r/io/config_io.hpp"
+#include "v4r/pipeline/params.hpp"
+#include "v4r/server/server.hpp"
+
+namespace v4r::app {
+
+namespace {
+
+/// \brief Command-line arguments of `v4r serve`.
+struct ServeArgs {
+  server::ServerOptions opt;
+  std::string camera_path;
+  int port = 5757;
+  int http_port = -1;
+  std::string config_file;
+  std::vector<std::string> sets;
+};
+
+int run_serve(ServeArgs& a) {
+  auto cam = io::load_camera(a.camera_path);
+  if (!cam) {
+    fmt::print(stderr, "v4r serve: error: {}\n", cam.error().to_string());
+    return 1;
+  }
+  a.opt.camera = *cam;
+  a.opt.port = static_cast<std::uint16_t>(a.port);
+  a.opt.http_port = a.http_port;
+  if (a.opt.token.empty()) {
+    // The token can also come from the environment, where `ps` does not show it.
+    if (const char* t = std::getenv("V4R_SERVE_TOKEN")) a.opt.token = t;
+  }
+  ParamRegistry reg = pipeline::make_registry(a.opt.params);
+  if (!a.config_file.empty()) {
+    if (auto r = io::apply_config_file(a.config_file, reg); !r) {
+      fmt::print(stderr, "v4r serve: error: {}\n", r.error().to_string());
+      return 1;
+    }
+  }
+  for (const std::string& kv : a.sets) {
+    const auto eq = kv.find('=');
+    auto r = eq == std::string::npos ? Expected<void>(make_error("--set expects key=value, got '" + kv + "'"))
+                                     : reg.set(kv.substr(0, eq), kv.substr(eq + 1));
+    if (!r) {
+      fmt::print(stderr, "v4r serve: error: --set: {}\n", r.error().to_string());
+      return 1;
+    }
+  }
+  auto srv = server::Server::create(a.opt);
+  if (!srv) {
+    fmt::print(stderr, "v4r serve: error: {}\n", srv.error().to_string());
+    return 1;
+  }
+  fmt::print("v4r serve: protocol on {}:{}{}{}; input {} at {} fps{}; Ctrl-C stops\n", a.opt.bind, (*srv)->port(),
+             a.opt.token.empty() ? "" : " (Auth required)",
+             (*srv)->http_port() ? fmt::format(", monitor on http://{}:{}/", a.opt.bind, (*srv)->http_port()) : "",
+             a.opt.input, a.opt.fps, a.opt.paused ? ", paused until Start" : "");
+  std::fflush(stdout);
+  const int rc = (*srv)->run();
+  const server::ServerStats st = (*srv)->stats();
+  fmt::print("v4r serve: stopped after {} frames, {} connections\n", st.frames, st.connections);
+  return rc;
+}
+
+}  // namespace
+
+/// Registers `v4r serve`; when it ran, `exit_code` holds its exit code.
+void add_serve_command(CLI::App& app, int& exit_code) {
+  auto a = std::make_shared<ServeArgs>();
+  auto* serve = app.add_subcommand("serve", "Run the tracker as a TCP service (protocol: docs/protocol.md)");
+  serve->add_option("--camera", a->camera_path, "Calibration (OpenCV or ROS camera_info YAML)")->required();
+  serve->add_option("--input", a->opt.input, "Image folder, printf pattern (frames/%06d.png) or video")->required();
+  serve->add_option("--fps", a->opt.fps, "Frames per second the input is played at (0: as fast as processed)")
+      ->check(CLI::Range(0.0, 10000.0))
+      ->capture_default_str();
+  serve->add_option("--port", a->port, "Protocol port (0: any free port)")->check(CLI::Range(0, 65535))->capture_default_str();
+  serve->add_option("--bind", a->opt.bind, "Listening address; anything but loopback requires --token")->capture_default_str();
+  serve->add_option("--http", a->http_port, "Port of the monitoring page (/, /stream.mjpg, /status.json)")
+      ->check(CLI::Range(0, 65535));
+  serve->add_flag("--paused", a->opt.paused, "Hold the input at frame 0 until a client sends Start");
+  serve->add_option("--token", a->opt.token,
+                    "Clients must send `Auth token=SECRET` first (or set V4R_SERVE_TOKEN, hidden from ps)");
+  serve->add_option("--max-clients", a->opt.max_clients, "Most simultaneous protocol clients")
+      ->check(CLI::Range(1, 100000))
+      ->capture_default_str();
+  serve->add_option("--log-file", a->opt.log_file, "CSV written by `Log on` without file=")->capture_default_str();
+  serve->add_option("--config", a->config_file, "YAML file of tracker parameters (see `v4r config`)");
+  serve->add_option("--set", a->sets, "Set one parameter: --set track.rows=32 (repeatable)");
+  serve->callback([a, &exit_code] { exit_code = run_serve(*a); });
+}
+
+}  // namespace v4r::app
+
+#endif  // __has_include("v4r/server/server.hpp")
