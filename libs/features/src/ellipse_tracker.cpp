@@ -139,11 +139,11 @@ Eigen::Matrix<double, 6, 1> Ellipse2::conic() const {
 EllipseTracker::EllipseTracker(const EllipseTrackerParams& params) : p_(sanitize(params)) {
   const auto n = static_cast<std::size_t>(p_.max_samples);
   const auto k = static_cast<std::size_t>(p_.max_candidates_per_line);
+  tan_max_edge_ = static_cast<float>(std::tan(p_.max_edge_angle));
   cols_ = 2 * p_.half_length + 5;  // offsets -L-2..L+2: peaks at -L..L have both neighbours' support
   sample_index_.assign(n, 0);
   line_p_.assign(n, Eigen::Vector2d::Zero());
   line_n_.assign(n, Eigen::Vector2d::UnitX());
-  line_valid_.assign(n, 0);
   line_lo_.assign(n, 0.0);
   line_hi_.assign(n, 0.0);
   profile_.assign(static_cast<std::size_t>(cols_), 0.0f);
@@ -188,12 +188,11 @@ bool EllipseTracker::predict_ellipse(int n) {
     const Eigen::Vector2d& nn = line_n_[i];
     Vector6d row;
     row << x.x() * x.x(), x.x() * x.y(), x.y() * x.y(), x.x(), x.y(), 1.0;
-    m.selfadjointView<Eigen::Lower>().rankUpdate(row);
+    m.noalias() += row * row.transpose();
     // grad Q = (2Ax + By + D, Bx + 2Cy + E); grad Q x n = gx ny - gy nx.
     row << 2.0 * x.x() * nn.y(), x.y() * nn.y() - x.x() * nn.x(), -2.0 * x.y() * nn.x(), nn.y(), -nn.x(), 0.0;
-    m.selfadjointView<Eigen::Lower>().rankUpdate(row);
+    m.noalias() += row * row.transpose();
   }
-  m = m.selfadjointView<Eigen::Lower>();
   const Eigen::SelfAdjointEigenSolver<Matrix6d> eig(m);
   if (eig.info() != Eigen::Success) return false;
   const Vector6d q = eig.eigenvectors().col(0);
@@ -296,7 +295,7 @@ void EllipseTracker::search_line(const image::ImageView& img, int i, int want_si
 
   // Local maxima of sign * g at offsets -L..L (columns 2..cols-3); support j-2..j+2 inside.
   const int k_max = p_.max_candidates_per_line;
-  const float tan_max = static_cast<float>(std::tan(p_.max_edge_angle));
+  const float tan_max = tan_max_edge_;
   Candidate* slots = &cand_[static_cast<std::size_t>(i) * k_max];
   int count = 0;
   int run = 0;  // consecutive inside columns ending at j + 2
@@ -410,7 +409,7 @@ bool EllipseTracker::fit(const int* idx, int count, int iterations, double sigma
       cost += r * r;
       if (h != nullptr) {
         jac *= w_data;
-        h->selfadjointView<Eigen::Lower>().rankUpdate(jac);
+        h->noalias() += jac * jac.transpose();
         *g += r * jac;
       }
     }
@@ -427,8 +426,7 @@ bool EllipseTracker::fit(const int* idx, int count, int iterations, double sigma
   double cost = objective(x, &h, &g);
   if (!std::isfinite(cost)) return false;
   for (int it = 0; it < iterations; ++it) {
-    const Matrix5d hs = h.selfadjointView<Eigen::Lower>();
-    const Eigen::LDLT<Matrix5d> ldlt(hs);
+    const Eigen::LDLT<Matrix5d> ldlt(h);
     if (ldlt.info() != Eigen::Success) break;
     const Vector5d step = -ldlt.solve(g);
     if (!step.allFinite()) break;
@@ -503,9 +501,7 @@ EllipseMeasurement EllipseTracker::track(const image::ImageView& img, std::span<
   int valid_lines = 0;
   int n_pos = 0, n_neg = 0;
   for (int i = 0; i < n; ++i) {
-    const bool valid = img.contains(line_p_[i].x(), line_p_[i].y(), kLineMargin);
-    line_valid_[i] = valid ? 1 : 0;
-    if (!valid) continue;
+    if (!img.contains(line_p_[i].x(), line_p_[i].y(), kLineMargin)) continue;
     ++valid_lines;
     limit_line(i);
     search_line(img, i, want);
@@ -588,7 +584,7 @@ EllipseMeasurement EllipseTracker::track(const image::ImageView& img, std::span<
       }
     }
     // Adaptive stop: iterations for an all-inlier draw with probability kRansacConfidence.
-    const double w = static_cast<double>(best.count) / (sign > 0 ? n_pos : n_neg);
+    const double w = static_cast<double>(best.count) / (best_sign > 0 ? n_pos : n_neg);
     const double p_good = std::pow(std::min(w, 1.0), kHypothesisSize);
     if (p_good >= 1.0 - 1e-12) {
       needed = std::min(needed, it + 1);

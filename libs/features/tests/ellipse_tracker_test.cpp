@@ -409,7 +409,8 @@ TEST(EllipseTracker, HalfArcOnly) {
     EXPECT_LT(axis_error_b(m.ellipse, truth), 0.5) << "case " << c;
     EXPECT_LT(max_inlier_distance(tracker, truth), 0.5) << "case " << c;
   }
-  std::printf("[ellipse] half arc: centre err mean %.3f max %.3f px | axes err mean %.3f max %.3f | inlier dist max %.3f\n",
+  std::printf("[ellipse] half arc: centre err mean %.3f max %.3f px | axes err mean %.3f max %.3f | "
+              "inlier dist max %.3f\n",
               centre.mean(), centre.max, axes.mean(), axes.max, inlier.max);
 }
 
@@ -441,7 +442,8 @@ TEST(EllipseTracker, ShortArcFollowsTheEdgeAndStaysNearThePrediction) {
     EXPECT_LT(err, 0.5) << "case " << c;
     EXPECT_LT((m.ellipse.center - truth.c).norm(), 2.0 * params.half_length) << "case " << c;
   }
-  std::printf("[ellipse] quarter arc: curve err along the arc max %.3f px | centre err mean %.2f max %.2f px\n", along.max,
+  std::printf("[ellipse] quarter arc: curve err along the arc max %.3f px | centre err mean %.2f max %.2f px\n",
+              along.max,
               centre.mean(), centre.max);
 }
 
@@ -488,7 +490,7 @@ TEST(EllipseTracker, ClutterOfCrossingLinesAndBlobs) {
     EXPECT_LT(axis_error_b(m.ellipse, truth), 0.4) << "case " << c;
   }
   std::printf("[ellipse] clutter: found %d/%d | centre err mean %.3f max %.3f px | axes err max %.3f | inlier dist max "
-              "%.3f | inlier ratio min %.2f\n",
+              "%.3f | inlier ratio mean %.2f\n",
               found, kCases, centre.mean(), centre.max, axes.max, inlier.max, ratio.n ? ratio.sum / ratio.n : 0.0);
 }
 
@@ -549,7 +551,8 @@ TEST(EllipseTracker, NoEllipseInTheImageIsNotFound) {
         canvas.capsule(p - 500.0 * d, p + 500.0 * d, 1.0 + 3.0 * u01(rng), static_cast<float>(ulevel(rng)));
       }
       for (int k = 0; k < 30; ++k)
-        canvas.disc(Eigen::Vector2d(kW * u01(rng), kH * u01(rng)), 2.0 + 4.0 * u01(rng), static_cast<float>(ulevel(rng)));
+        canvas.disc(Eigen::Vector2d(kW * u01(rng), kH * u01(rng)), 2.0 + 4.0 * u01(rng),
+                    static_cast<float>(ulevel(rng)));
     }
     const auto img = canvas.quantize(5.0, 1100 + c);
     const TrueEllipse pred = random_ellipse(rng, kW, kH);
@@ -638,7 +641,8 @@ TEST(EllipseTracker, DegenerateInputsAreNotFound) {
   std::vector<CurveSample> same(32, CurveSample{Eigen::Vector2d(100.0, 100.0), Eigen::Vector2d::UnitX()});
   EXPECT_FALSE(tracker.track(view, same, state).found);
   std::vector<CurveSample> line;
-  for (int i = 0; i < 32; ++i) line.push_back(CurveSample{Eigen::Vector2d(40.0 + 4.0 * i, 60.0), Eigen::Vector2d::UnitY()});
+  for (int i = 0; i < 32; ++i)
+    line.push_back(CurveSample{Eigen::Vector2d(40.0 + 4.0 * i, 60.0), Eigen::Vector2d::UnitY()});
   EXPECT_FALSE(tracker.track(view, line, state).found);
   EXPECT_EQ(state.polarity, 0);
 
@@ -717,7 +721,9 @@ TEST(EllipseTracker, LearnedPolarityRejectsAStrongerOppositeEdge) {
   // only in part, so just check that no inlier lies on the inner edge.
   state.polarity = -1;
   const EllipseMeasurement o = tracker.track(view_of(img, kW, kH), pred.samples(32), state);
-  if (o.found) EXPECT_EQ(o.polarity, -1);
+  if (o.found) {
+    EXPECT_EQ(o.polarity, -1);
+  }
   for (const Eigen::Vector2d& p : tracker.last_inliers()) EXPECT_GT(inner.distance(p), 3.0);
 }
 
@@ -750,7 +756,9 @@ TEST(EllipseTracker, DeterministicAndAllocationFree) {
   }
   m2 = tracker.track(view, samples, s2);
   const long after = allocation_count();
-  if (kCountsAllocations) EXPECT_EQ(after - before, 0) << "track() allocated";
+  if (kCountsAllocations) {
+    EXPECT_EQ(after - before, 0) << "track() allocated";
+  }
 
   EXPECT_EQ(m1.inliers, m2.inliers);
   EXPECT_EQ(m1.ellipse.center, m2.ellipse.center);

@@ -67,25 +67,35 @@ struct EllipseTrackState {
 
 /// \brief Finds an ellipse (or elliptic arc) near a predicted curve given as samples with normals.
 ///
-/// Algorithm (paper 3.2): (1) the predicted ellipse is recovered from the samples by an algebraic
-/// conic fit to their points and normals (Hartley-normalised; exact for samples of an ellipse,
-/// well-posed for arcs thanks to the normals). (2) Each sample gets a tracking line of 2L+1
-/// bilinear samples along its normal, averaged with the two parallel lines 1 px away along the
-/// tangent; the central-difference gradient's strongest local maxima (|g| >= min_gradient, sign
-/// fixed by the learned polarity) are refined to sub-pixel by a parabola. (3) RANSAC: each
-/// hypothesis is the ellipse through 5 edge points of one polarity on distinct lines, solved by
-/// Gauss-Newton on their Sampson distances starting from the prediction with a weak prior towards
-/// it (so that points on a short arc still give a well-posed ellipse); non-ellipses and ellipses
-/// whose centre moved more than 2L or whose axes changed by more than 30 % are rejected; inliers
-/// are the lines holding an edge point within inlier_tolerance (Sampson distance). (4) The best
-/// hypothesis is refined by Gauss-Newton on all inliers (same weak prior), inliers recomputed,
-/// until stable.
+/// Algorithm (paper 3.2):
+/// 1. Prediction: the predicted ellipse is recovered from the samples by an algebraic conic fit
+///    to their points and normals (Hartley-normalised; exact for samples of an ellipse, well-posed
+///    for arcs thanks to the normals). Samples far from any ellipse make the call fail.
+/// 2. Edge points: each sample gets a tracking line along its normal (offsets -L..L, L =
+///    half_length), averaged with the two parallel lines 1 px away along the tangent; the
+///    strongest local maxima of the central-difference gradient (|g| >= min_gradient, sign fixed
+///    by the learned polarity, image gradient within max_edge_angle of the normal) are refined to
+///    sub-pixel by a parabola. On the inner side a line stops at 0.7 x the predicted radius of
+///    curvature, where neighbouring lines would start to cross.
+/// 3. RANSAC: each hypothesis is the ellipse through 5 edge points of one polarity on distinct
+///    lines (drawn with probability proportional to gradient strength), solved by Gauss-Newton on
+///    their Sampson distances starting from the prediction with a weak Gaussian prior towards it,
+///    so that points on a short arc still give a well-posed ellipse. Non-ellipses and ellipses
+///    whose centre moved more than 2L or whose axes changed by more than 30 % are rejected.
+///    Inliers: per line, the candidate nearest the ellipse within inlier_tolerance (Sampson
+///    distance) whose gradient is within 20 degrees of the ellipse normal. Hypotheses are ranked
+///    by the MSAC utility; a new best one is refitted on its inliers (local optimisation); the
+///    iteration count adapts to the inlier ratio.
+/// 4. Refinement: Gauss-Newton on all inliers, inliers recomputed, while the utility improves;
+///    then the tolerance shrinks to 3.5 robust standard deviations of the residuals (at least
+///    0.4 x inlier_tolerance) and the last fit weighs the points by that standard deviation.
 ///
-/// Arcs: the prior (centre sigma L pixels, shape sigma 15 % of the size) is negligible wherever
-/// the edge points constrain the ellipse (full ellipse, half arc) and keeps the directions a short
-/// arc cannot observe near the prediction: the fit always passes through the arc's edge points.
+/// Arcs: the fit is the MAP estimate with the prior (centre sigma L pixels, shape sigma 15 % of the
+/// size). Wherever the edge points constrain the ellipse (full ellipse, half arc) the prior is
+/// negligible; in the directions a short arc cannot observe it keeps the ellipse near the
+/// prediction, while the fit still passes through the arc's edge points (reported as inliers).
 ///
-/// Found when at least 6 inliers and inlier_ratio >= min_inlier_ratio and the fit passes the
+/// Found when at least 6 inliers, inlier_ratio >= min_inlier_ratio and the fit passes the
 /// prediction gate. Buffers are allocated in the constructor: track() allocates nothing.
 class EllipseTracker {
  public:
@@ -134,11 +144,11 @@ class EllipseTracker {
   Ellipse2 to_pixels(const Params5& v) const;
 
   EllipseTrackerParams p_;
-  int cols_ = 0;                            // 2L+1
+  int cols_ = 0;                            // 2L+5
+  float tan_max_edge_ = 0.0f;               // tan(max_edge_angle)
   std::vector<int> sample_index_;           // max_samples: index into `predicted` of each line
   std::vector<Eigen::Vector2d> line_p_;     // max_samples: sample point (pixels)
   std::vector<Eigen::Vector2d> line_n_;     // max_samples: unit normal
-  std::vector<unsigned char> line_valid_;   // max_samples: sample point inside the image
   std::vector<double> line_lo_, line_hi_;   // max_samples: offsets searched along the normal (pixels)
   std::vector<float> profile_;              // 2L+5 smoothed intensities of the current line
   std::vector<float> tangential_;           // 2L+5 gradient along the tangent (grey levels per pixel)
@@ -146,7 +156,7 @@ class EllipseTracker {
   std::vector<unsigned char> inside_;       // 2L+5: samples of the current line inside the image
   std::vector<Candidate> cand_;             // max_samples x max_candidates_per_line, line-major slots
   std::vector<int> cand_count_;             // max_samples
-  std::vector<int> pool_;                   // candidate indices of one sign (RANSAC sampling)
+  std::vector<int> pool_;                   // candidate indices, positive signs first (RANSAC sampling)
   std::vector<float> pool_cum_;             // prefix sums of their strengths
   std::vector<int> inlier_idx_;             // max_samples: candidate index of each inlier
   std::vector<int> best_idx_;               // max_samples: inliers of the best hypothesis
