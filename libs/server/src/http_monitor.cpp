@@ -15,6 +15,7 @@ namespace {
 constexpr std::size_t kMaxHeadBytes = 8192;
 constexpr std::chrono::seconds kHeadTimeout{10};
 constexpr std::chrono::seconds kWriteTimeout{10};
+constexpr std::chrono::milliseconds kRepeatInterval{500};
 constexpr const char* kBoundary = "v4rframe";
 
 constexpr const char* kPage = R"(<!doctype html>
@@ -50,7 +51,8 @@ poll();
 /// sending the newest JPEG whenever the previous one has been written.
 class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
  public:
-  HttpConnection(asio::ip::tcp::socket s, HttpMonitor& m) : socket_(std::move(s)), timer_(socket_.get_executor()), monitor_(m) {}
+  HttpConnection(asio::ip::tcp::socket s, HttpMonitor& m)
+      : socket_(std::move(s)), timer_(socket_.get_executor()), repeat_(socket_.get_executor()), monitor_(m) {}
 
   void start() {
     arm(kHeadTimeout);
@@ -71,6 +73,7 @@ class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
     socket_.shutdown(asio::ip::tcp::socket::shutdown_both, ignored);
     socket_.close(ignored);
     timer_.cancel();
+    repeat_.cancel();
     monitor_.remove(shared_from_this());
   }
 
@@ -117,8 +120,8 @@ class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
   void start_stream() {
     streaming_ = true;
     text_ = fmt::format("HTTP/1.0 200 OK\r\nContent-Type: multipart/x-mixed-replace; boundary={}\r\n"
-                        "Cache-Control: no-store\r\nConnection: close\r\n\r\n",
-                        kBoundary);
+                        "Cache-Control: no-store\r\nConnection: close\r\n\r\n--{}\r\n",
+                        kBoundary, kBoundary);
     writing_ = true;
     arm(kWriteTimeout);
     asio::async_write(socket_, asio::buffer(text_), [self = shared_from_this()](const asio::error_code& ec, std::size_t) {
@@ -132,8 +135,11 @@ class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
     if (!streaming_ || writing_ || closed_ || !pending_) return;
     sending_ = std::move(pending_);
     pending_.reset();
-    part_ = fmt::format("--{}\r\nContent-Type: image/jpeg\r\nContent-Length: {}\r\n\r\n", kBoundary, sending_->size());
-    buffers_ = {asio::buffer(part_), asio::buffer(*sending_), asio::buffer("\r\n", 2)};
+    // Each part ends with the next boundary: a browser shows a part only once it sees the
+    // boundary after it, so the newest image must not wait for the next frame.
+    part_ = fmt::format("Content-Type: image/jpeg\r\nContent-Length: {}\r\n\r\n", sending_->size());
+    tail_ = fmt::format("\r\n--{}\r\n", kBoundary);
+    buffers_ = {asio::buffer(part_), asio::buffer(*sending_), asio::buffer(tail_)};
     writing_ = true;
     arm(kWriteTimeout);
     asio::async_write(socket_, buffers_, [self = shared_from_this()](const asio::error_code& ec, std::size_t) {
@@ -149,13 +155,28 @@ class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
       return;
     }
     write_frame();
+    if (!writing_) arm_repeat();
+  }
+
+  // Chromium shows a part of a multipart stream only when the next part begins, so the newest
+  // image is repeated while no new one comes (paused or ended input, Display off): a still scene
+  // is shown too, and an idle viewer's connection stays alive.
+  void arm_repeat() {
+    repeat_.expires_after(kRepeatInterval);
+    repeat_.async_wait([w = weak_from_this()](const asio::error_code& ec) {
+      auto s = w.lock();
+      if (!s || ec || s->closed_ || s->writing_) return;
+      if (!s->pending_) s->pending_ = s->monitor_.latest_jpeg();
+      s->write_frame();
+    });
   }
 
   asio::ip::tcp::socket socket_;
-  asio::steady_timer timer_;
+  asio::steady_timer timer_;   // deadline of the current read or write
+  asio::steady_timer repeat_;  // repeats the newest image while no new one comes
   HttpMonitor& monitor_;
   asio::streambuf head_{kMaxHeadBytes};
-  std::string text_, part_;
+  std::string text_, part_, tail_;
   std::array<asio::const_buffer, 3> buffers_;
   SharedLine pending_, sending_;
   bool streaming_ = false, writing_ = false, closed_ = false;

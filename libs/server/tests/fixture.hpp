@@ -4,6 +4,7 @@
 // Test helpers: a rendered ship sequence (made once per test process), an in-process server on
 // an ephemeral loopback port, and protocol clients.
 
+#include <array>
 #include <chrono>
 #include <filesystem>
 #include <functional>
@@ -12,7 +13,10 @@
 #include <string>
 #include <vector>
 
+#include <asio.hpp>
 #include <gtest/gtest.h>
+#include <sys/socket.h>
+#include <sys/time.h>
 #include <unistd.h>
 
 #include "v4r/geometry/look_at.hpp"
@@ -160,6 +164,25 @@ inline bool has_all(const PoseLog& log, const std::string& object, int frames) {
   for (int f = 0; f < frames; ++f)
     if (!it->second.count(static_cast<std::uint64_t>(f))) return false;
   return true;
+}
+
+/// GET over HTTP/1.0; returns the head and as much of the body as `max_bytes`.
+inline std::string http_get(std::uint16_t port, const std::string& path, std::size_t max_bytes = 1 << 20) {
+  asio::io_context io;
+  asio::ip::tcp::socket s(io);
+  s.connect({asio::ip::make_address("127.0.0.1"), port});
+  const timeval tv{2, 0};  // a stream never ends: give up reading after 2 s of silence
+  ::setsockopt(s.native_handle(), SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+  asio::write(s, asio::buffer("GET " + path + " HTTP/1.0\r\nHost: x\r\n\r\n"));
+  std::string out;
+  std::array<char, 8192> buf;
+  // Plain recv(): Asio's blocking read would wait on past the SO_RCVTIMEO timeout.
+  while (out.size() < max_bytes) {
+    const ssize_t n = ::recv(s.native_handle(), buf.data(), buf.size(), 0);
+    if (n <= 0) break;
+    out.append(buf.data(), static_cast<std::size_t>(n));
+  }
+  return out;
 }
 
 inline geometry::SE3 to_se3(const protocol::ObjectPoseEvent& e) {

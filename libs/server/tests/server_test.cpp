@@ -57,25 +57,6 @@ pipeline::AccuracyStats accuracy(const PoseLog& log, const std::string& object, 
   return pipeline::evaluate(est, seq.truth);
 }
 
-/// GET over HTTP/1.0; returns the head and as much of the body as `max_bytes`.
-std::string http_get(std::uint16_t port, const std::string& path, std::size_t max_bytes = 1 << 20) {
-  asio::io_context io;
-  asio::ip::tcp::socket s(io);
-  s.connect({asio::ip::make_address("127.0.0.1"), port});
-  const timeval tv{2, 0};  // a stream never ends: give up reading after 2 s of silence
-  ::setsockopt(s.native_handle(), SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
-  asio::write(s, asio::buffer("GET " + path + " HTTP/1.0\r\nHost: x\r\n\r\n"));
-  std::string out;
-  std::array<char, 8192> buf;
-  asio::error_code ec;
-  while (out.size() < max_bytes) {
-    const std::size_t n = s.read_some(asio::buffer(buf), ec);
-    if (ec) break;
-    out.append(buf.data(), n);
-  }
-  return out;
-}
-
 // (1) One client builds an object with AddModel bytes=N, another one with AddFeature only; both
 // set the initial pose and subscribe; after Start both receive an ObjectPose per frame per object.
 TEST(Server, ObjectsFromAddModelAndFromAddFeatureTrackEveryFrameAccurately) {
