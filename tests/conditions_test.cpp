@@ -87,7 +87,9 @@ TEST_P(HardConditions, AtLeast95PercentOfFramesWithin5cmAnd5Degrees) {
     EXPECT_LT(o.acc.mean_translation_m, 1e-3);
     EXPECT_LT(o.acc.mean_rotation_deg, 0.3);
   }
-  if (c.condition == synth::Condition::kFast) EXPECT_EQ(o.lost, 0);
+  if (c.condition == synth::Condition::kFast) {
+    EXPECT_EQ(o.lost, 0);
+  }
 }
 
 INSTANTIATE_TEST_SUITE_P(All, HardConditions, ::testing::ValuesIn([] {
