@@ -12,6 +12,9 @@ constexpr double kMinSegmentLength = 3.0;  // pixels: shorter predictions are de
 constexpr double kRowMargin = 1.0;         // pixels: a row centre must lie this far inside the image
 constexpr int kMinInliers = 3;             // a line needs at least this many inlier rows
 constexpr std::uint32_t kDefaultSeed = 0x9E3779B9u;  // xorshift state must not be zero
+// RANSAC stops once a pair of inliers has been drawn with this probability (counting inlier
+// ratios over the whole pool, both polarities: conservative, the draw favours strong edgels).
+constexpr double kRansacConfidence = 0.999;
 
 constexpr double kInsideMargin = 0.01;     // pixels: keeps x0 + 1, y0 + 1 of a bilinear sample inside
 constexpr float kMinChromaSum = 30.0f;     // grey levels: mean R + G + B below which rg chromaticity is noise
@@ -19,11 +22,12 @@ constexpr float kMaxDarkScale = 4.0f;      // largest widening of the chroma tol
 
 bool finite(const Eigen::Vector2d& p) { return std::isfinite(p.x()) && std::isfinite(p.y()); }
 
-/// Bilinear sample without clamping (same arithmetic as ImageView::sample); the caller guarantees
-/// kInsideMargin <= x <= width - 1 - kInsideMargin, likewise y.
-inline float sample_inside(const image::ImageView& img, double x, double y) {
+/// Bilinear sample without clamping (the arithmetic of ImageView::sample, in single precision:
+/// positions below 2^14 keep 1e-3 px); the caller guarantees kInsideMargin <= x <= width - 1 -
+/// kInsideMargin, likewise y.
+inline float sample_inside(const image::ImageView& img, float x, float y) {
   const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
-  const float ax = static_cast<float>(x - x0), ay = static_cast<float>(y - y0);
+  const float ax = x - static_cast<float>(x0), ay = y - static_cast<float>(y0);
   const std::uint8_t* r0 = img.data + static_cast<long>(y0) * img.stride + x0;
   const std::uint8_t* r1 = r0 + img.stride;
   const float top = r0[0] + ax * (static_cast<float>(r0[1]) - r0[0]);
@@ -67,6 +71,10 @@ LineTracker::LineTracker(const LineTrackerParams& params) : p_(sanitize(params))
   grad_.assign(rows * static_cast<std::size_t>(cols_), 0.0f);
   row_valid_.assign(rows, 0);
   col_inside_.assign(rows * static_cast<std::size_t>(cols_), 0);
+  sample_off_.assign(3 * static_cast<std::size_t>(cols_), 0);
+  sample_ax_.assign(3 * static_cast<std::size_t>(cols_), 0.0f);
+  sample_ay_.assign(3 * static_cast<std::size_t>(cols_), 0.0f);
+  sample_val_.assign(3 * static_cast<std::size_t>(cols_), 0.0f);
   row_v_.assign(rows, 0.0);
   row_centre_.assign(rows, Eigen::Vector2d::Zero());
   edgels_.assign(rows * static_cast<std::size_t>(p_.max_candidates_per_row), Edgel{});
@@ -161,8 +169,9 @@ bool LineTracker::grey_band(int row, int col, int side, float* grey) const {
     const Eigen::Vector2d q = first + static_cast<double>(j) * n_;
     const Eigen::Vector2d q0 = q - d_, q2 = q + d_;
     if (!img_.contains(q0.x(), q0.y(), kInsideMargin) || !img_.contains(q2.x(), q2.y(), kInsideMargin)) continue;
-    sum += (sample_inside(img_, q0.x(), q0.y()) + sample_inside(img_, q.x(), q.y()) +
-            sample_inside(img_, q2.x(), q2.y())) *
+    sum += (sample_inside(img_, static_cast<float>(q0.x()), static_cast<float>(q0.y())) +
+            sample_inside(img_, static_cast<float>(q.x()), static_cast<float>(q.y())) +
+            sample_inside(img_, static_cast<float>(q2.x()), static_cast<float>(q2.y()))) *
            (1.0f / 3.0f);
     ++n;
   }
@@ -386,7 +395,9 @@ void LineTracker::fit_pool(int pool_size, int valid_rows, LineMeasurement& m) {
                                      pool_cum_.begin());
       return pool_[std::min(k, pool_size - 1)];
     };
-    for (int it = 0; it < p_.ransac_iterations; ++it) {
+    const double log_miss = std::log(1.0 - kRansacConfidence);
+    int needed = p_.ransac_iterations;
+    for (int it = 0; it < needed; ++it) {
       const int ia = draw();
       int ib = draw();
       // A few redraws for a partner in another row with the same sign; a failed draw still
@@ -394,7 +405,14 @@ void LineTracker::fit_pool(int pool_size, int valid_rows, LineMeasurement& m) {
       for (int r = 0; r < 4 && (edgels_[ib].row == edgels_[ia].row || edgels_[ib].sign != edgels_[ia].sign);
            ++r)
         ib = draw();
+      const int before = best_count;
       consider(ia, ib);
+      if (best_count > before) {  // adaptive stop: iterations for an inlier pair at this inlier ratio
+        const double w = static_cast<double>(best_count) / pool_size;
+        const double miss = 1.0 - w * w;
+        const double n = miss <= 1e-12 ? 1.0 : std::ceil(log_miss / std::log(miss));
+        needed = static_cast<int>(std::min<double>(p_.ransac_iterations, std::max(n, 1.0)));
+      }
     }
   }
   if (best_count < 2) return;
@@ -477,11 +495,34 @@ LineMeasurement LineTracker::track(const image::ImageView& img, const Segment2& 
                             img.contains(last.x() + d.x(), last.y() + d.y(), kInsideMargin);
     if (row_inside) {
       // Fast path: the four corners inside => every sample inside (the image is convex).
+      // Two passes: sample addresses and weights (vectorised), then the bilinear blends.
+      const float nx = static_cast<float>(n.x()), ny = static_cast<float>(n.y());
+      const float dx = static_cast<float>(d.x()), dy = static_cast<float>(d.y());
+      const int stride = img.stride;
+      for (int l = 0; l < 3; ++l) {
+        const float fx = static_cast<float>(first.x()) + static_cast<float>(l - 1) * dx;
+        const float fy = static_cast<float>(first.y()) + static_cast<float>(l - 1) * dy;
+        int* off = &sample_off_[static_cast<std::size_t>(l) * cols];
+        float* ax = &sample_ax_[static_cast<std::size_t>(l) * cols];
+        float* ay = &sample_ay_[static_cast<std::size_t>(l) * cols];
+        for (int j = 0; j < cols; ++j) {
+          const float x = fx + static_cast<float>(j) * nx, y = fy + static_cast<float>(j) * ny;
+          const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
+          ax[j] = x - static_cast<float>(x0);
+          ay[j] = y - static_cast<float>(y0);
+          off[j] = y0 * stride + x0;
+        }
+      }
+      const int n3 = 3 * cols;
+      for (int k = 0; k < n3; ++k) {
+        const std::uint8_t* r0 = img.data + sample_off_[k];
+        const std::uint8_t* r1 = r0 + stride;
+        const float top = r0[0] + sample_ax_[k] * (static_cast<float>(r0[1]) - r0[0]);
+        const float bot = r1[0] + sample_ax_[k] * (static_cast<float>(r1[1]) - r1[0]);
+        sample_val_[k] = top + sample_ay_[k] * (bot - top);
+      }
       for (int j = 0; j < cols; ++j) {
-        const Eigen::Vector2d q = first + static_cast<double>(j) * n;
-        const float acc = sample_inside(img, q.x() - d.x(), q.y() - d.y()) + sample_inside(img, q.x(), q.y()) +
-                          sample_inside(img, q.x() + d.x(), q.y() + d.y());
-        prow[j] = acc * (1.0f / 3.0f);
+        prow[j] = (sample_val_[j] + sample_val_[cols + j] + sample_val_[2 * cols + j]) * (1.0f / 3.0f);
         inside[j] = 1;
       }
     } else {

@@ -316,6 +316,7 @@ int VisionCycle::track_features(const model::Model& model, scene::View& view, co
   const image::ColourView* colour = img.colour.empty() ? nullptr : &img.colour;
   auto& out = edgels_[view.camera];
   int found = 0;
+  refound_ = 0;
   for (scene::LineFeature& f : view.lines) {
     if (!f.visible || f.ambiguous || f.dropped) continue;
     // The first pass measures every feature: features not found in the last frame are searched
@@ -329,6 +330,7 @@ int VisionCycle::track_features(const model::Model& model, scene::View& view, co
       features::LineTracker& t = search ? searchers_[std::min<std::size_t>(search_level, searchers_.size() - 1)]
                                         : (degrade_level_ >= 1 ? reduced_tracker_ : tracker_);
       f.measurement = t.track(img.grey, f.predicted, f.track, colour);
+      if (!first_pass && f.measurement.found) ++refound_;
       last_samples_ += t.params().rows;
       f.retrack = !f.measurement.found;
       if (f.measurement.found) {
@@ -361,6 +363,7 @@ int VisionCycle::track_features(const model::Model& model, scene::View& view, co
       const bool search = first_pass && (a.status != scene::FeatureStatus::kFound || search_level > 0);
       features::EllipseTracker& t = search ? ellipse_searcher_ : (degrade_level_ >= 1 ? reduced_ellipse_tracker_ : ellipse_tracker_);
       a.measurement = t.track(img.grey, curve_, a.track);
+      if (!first_pass && a.measurement.found) ++refound_;
       last_samples_ += static_cast<long>(curve_.size());
       a.retrack = !a.measurement.found;
       a.edges = 0;
@@ -406,7 +409,7 @@ void VisionCycle::collect_observations(const scene::Object& obj, scene::View& vi
       const model::Junction& J = junctions[j];
       if (J.lines.size() < 2) continue;
       double best_sin = sin_min;
-      Eigen::Vector3d best_l1, best_l2;
+      Eigen::Vector3d best_l1 = Eigen::Vector3d::Zero(), best_l2 = Eigen::Vector3d::Zero();
       bool have = false;
       for (std::size_t u = 0; u < J.lines.size(); ++u) {
         const scene::LineFeature& f = view.lines[J.lines[u]];
@@ -485,6 +488,8 @@ void VisionCycle::process_view(scene::Object& obj, scene::View& view, const scen
     found = track_features(*obj.model, view, cam, img, pass == 0, rep.search_level);
     const auto tb = now_();
     report_.track_ms += ms_between(ta, tb);
+    // A later pass whose re-measured features all failed again adds nothing: the last solve stands.
+    if (pass > 0 && refound_ == 0) break;
 
     collect_observations(obj, view, cam);
     const int n_obs = static_cast<int>(line_obs_.size() + point_obs_.size() + circle_obs_.size() / 4);

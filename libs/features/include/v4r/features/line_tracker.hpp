@@ -167,6 +167,8 @@ class LineTracker {
   std::vector<float> grad_;      // rows x (2w+1) gradient across
   std::vector<unsigned char> row_valid_;
   std::vector<unsigned char> col_inside_;  // 2w+1: the current row's samples all inside the image
+  std::vector<int> sample_off_;      // 3 x (2w+1): byte offset of each sample's top-left pixel
+  std::vector<float> sample_ax_, sample_ay_, sample_val_;  // 3 x (2w+1): its weights and value
   std::vector<double> row_v_;    // rows: position of each row along the axis (pixels)
   std::vector<Eigen::Vector2d> row_centre_;  // rows: window centre point of each row (pixels)
   std::vector<Edgel> edgels_;    // rows x max_candidates_per_row, row-major slots

@@ -137,6 +137,7 @@ class VisionCycle {
 
   CycleParams p_;
   Clock::time_point (*now_)();
+  int refound_ = 0;  // features missed in the first pass and found by a later one (this call)
   features::LineTracker tracker_, reduced_tracker_;
   std::vector<features::LineTracker> searchers_;  // per search level
   features::EllipseTracker ellipse_tracker_, ellipse_searcher_, reduced_ellipse_tracker_;
