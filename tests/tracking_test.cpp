@@ -81,7 +81,8 @@ TEST_P(RegularSequence, TracksEveryFrameWithinSubMillimetre) {
 INSTANTIATE_TEST_SUITE_P(
     Objects, RegularSequence,
     ::testing::Values(SequenceCase{"box", &synth::box_cao, 0.55, -0.6, 0.7, 1.0},
-                      SequenceCase{"ship", &synth::ship_mockup_cao, 0.7, -0.6, 0.75, 1.0}),
+                      SequenceCase{"ship", &synth::ship_mockup_cao, 0.7, -0.6, 0.75, 1.0},
+                      SequenceCase{"section", &synth::ship_section_cao, 0.6, -0.6, 0.75, 1.0}),
     [](const ::testing::TestParamInfo<SequenceCase>& i) { return std::string(i.param.name); });
 
 TEST(Tracking, ConvergesFromAnOffsetInitialPose) {

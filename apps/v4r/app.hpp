@@ -32,6 +32,7 @@ struct TrackSummary {
   std::vector<geometry::SE3> poses;
   std::vector<double> cycle_ms, visibility_ms, track_ms, solve_ms;
   std::vector<int> features_used;
+  std::vector<int> features_visible, features_found, junctions_used;  ///< per frame (v4r bench)
 };
 
 /// Loads a model by extension (.cao today; meshes join later). Errors name the file.

@@ -44,8 +44,9 @@ Expected<std::string> model_text(const std::string& name) {
   if (name == "box") return synth::box_cao();
   if (name == "ship" || name == "ship_mockup") return synth::ship_mockup_cao();
   if (name == "flange") return synth::flange_cao();
+  if (name == "section" || name == "ship_section") return synth::ship_section_cao();
   std::FILE* f = std::fopen(name.c_str(), "rb");
-  if (!f) return make_error(name, 0, 0, "model file not found (built-in models: box, ship, flange)");
+  if (!f) return make_error(name, 0, 0, "model file not found (built-in models: box, ship, flange, section)");
   std::string s;
   char buf[4096];
   std::size_t n;
@@ -155,14 +156,22 @@ int cmd_bench(const RenderArgs& a, int repeat, double budget_ms) {
       s.track_ms.push_back(res.track_ms);
       s.solve_ms.push_back(res.solve_ms);
       s.features_used.push_back(res.report.features_used);
+      s.features_visible.push_back(res.report.features_visible);
+      s.features_found.push_back(res.report.features_found);
+      s.junctions_used.push_back(res.report.junctions_used);
       if (res.report.status == scene::TrackStatus::kLost) ++s.lost;
       ++s.frames;
       overruns = res.overruns;
     }
   }
-  const auto used = pipeline::percentiles(std::vector<double>(s.features_used.begin(), s.features_used.end()));
-  fmt::print("v4r bench: model {} ({}) at {}x{}, {} frames x {} runs, median {} features used per frame, {} overruns\n",
-             a.model, fmt::join(a.conditions, ","), cam.width, cam.height, a.frames, repeat, used.median, overruns);
+  const auto median = [](const std::vector<int>& v) {
+    return pipeline::percentiles(std::vector<double>(v.begin(), v.end())).median;
+  };
+  fmt::print("v4r bench: model {} ({}) at {}x{}, {} frames x {} runs, {} overruns\n", a.model,
+             fmt::join(a.conditions, ","), cam.width, cam.height, a.frames, repeat, overruns);
+  fmt::print("features per frame (median): {} edges and circles visible, {} found, {} junctions used, {} observations "
+             "used by the pose solve\n",
+             median(s.features_visible), median(s.features_found), median(s.junctions_used), median(s.features_used));
   app::print_report(s, &traj);
   return 0;
 }
@@ -216,7 +225,7 @@ int main(int argc, char** argv) {
 
     RenderArgs ra;
     auto* render = app.add_subcommand("render", "Render a synthetic sequence with ground truth");
-    render->add_option("--model", ra.model, "box, ship, flange, or a .cao file")->capture_default_str();
+    render->add_option("--model", ra.model, "box, ship, flange, section, or a .cao file")->capture_default_str();
     render->add_option("--out", ra.out, "Output folder")->required();
     render->add_option("--frames", ra.frames, "Number of frames")->check(CLI::Range(1, 100000))->capture_default_str();
     render->add_option("--speed", ra.speed, "Motion speed factor")->check(CLI::Range(0.0, 100.0))->capture_default_str();
@@ -239,7 +248,7 @@ int main(int argc, char** argv) {
     RenderArgs ba;
     int repeat = 5;
     auto* bench = app.add_subcommand("bench", "Benchmark the vision cycle on a rendered sequence (in memory)");
-    bench->add_option("--model", ba.model, "box, ship, flange, or a .cao file")->capture_default_str();
+    bench->add_option("--model", ba.model, "box, ship, flange, section, or a .cao file")->capture_default_str();
     bench->add_option("--condition", ba.conditions, "Rendering conditions (see render)")
         ->delimiter(',')
         ->check(CLI::IsMember(synth::condition_names()));

@@ -155,6 +155,110 @@ std::string flange_cao() {
 )CAO";
 }
 
+std::string ship_section_cao() {
+  return R"CAO(V1
+# v4r built-in model "ship_section": a denser welded section for the timing benchmark (20-40
+# visible features): a base plate 0.40 x 0.30 x 0.02 m, two longitudinal walls 0.36 x 0.02 m
+# (port 0.12 m high, starboard 0.10 m) inset from its long sides, and three transverse frames
+# 0.02 m thick and 0.07 m high between them, butting against both walls. Hidden faces (the walls'
+# and frames' bottoms, the frames' ends against the walls) are left out. Heights differ so that no
+# two adjacent faces are coplanar.
+# Origin at the centre of the base plate's top face, z up. Units: metres.
+# Faces list their points counter-clockwise seen from outside (normals point out).
+# 3D points
+48
+# base plate: x in [-0.20, 0.20], y in [-0.15, 0.15], z in [-0.02, 0.00]
+-0.20 -0.15 -0.02   # 0
+ 0.20 -0.15 -0.02   # 1
+ 0.20  0.15 -0.02   # 2
+-0.20  0.15 -0.02   # 3
+-0.20 -0.15  0.00   # 4
+ 0.20 -0.15  0.00   # 5
+ 0.20  0.15  0.00   # 6
+-0.20  0.15  0.00   # 7
+# port wall: x in [-0.18, 0.18], y in [0.10, 0.12], z in [0.00, 0.12]
+-0.18  0.10  0.00   # 8
+ 0.18  0.10  0.00   # 9
+ 0.18  0.12  0.00   # 10
+-0.18  0.12  0.00   # 11
+-0.18  0.10  0.12   # 12
+ 0.18  0.10  0.12   # 13
+ 0.18  0.12  0.12   # 14
+-0.18  0.12  0.12   # 15
+# starboard wall: x in [-0.18, 0.18], y in [-0.12, -0.10], z in [0.00, 0.10]
+-0.18 -0.12  0.00   # 16
+ 0.18 -0.12  0.00   # 17
+ 0.18 -0.10  0.00   # 18
+-0.18 -0.10  0.00   # 19
+-0.18 -0.12  0.10   # 20
+ 0.18 -0.12  0.10   # 21
+ 0.18 -0.10  0.10   # 22
+-0.18 -0.10  0.10   # 23
+# frame 1: x in [-0.12, -0.10], y in [-0.10, 0.10], z in [0.00, 0.07]
+-0.12 -0.10  0.00   # 24
+-0.10 -0.10  0.00   # 25
+-0.10  0.10  0.00   # 26
+-0.12  0.10  0.00   # 27
+-0.12 -0.10  0.07   # 28
+-0.10 -0.10  0.07   # 29
+-0.10  0.10  0.07   # 30
+-0.12  0.10  0.07   # 31
+# frame 2: x in [-0.01, 0.01], y in [-0.10, 0.10], z in [0.00, 0.07]
+-0.01 -0.10  0.00   # 32
+ 0.01 -0.10  0.00   # 33
+ 0.01  0.10  0.00   # 34
+-0.01  0.10  0.00   # 35
+-0.01 -0.10  0.07   # 36
+ 0.01 -0.10  0.07   # 37
+ 0.01  0.10  0.07   # 38
+-0.01  0.10  0.07   # 39
+# frame 3: x in [0.10, 0.12], y in [-0.10, 0.10], z in [0.00, 0.07]
+ 0.10 -0.10  0.00   # 40
+ 0.12 -0.10  0.00   # 41
+ 0.12  0.10  0.00   # 42
+ 0.10  0.10  0.00   # 43
+ 0.10 -0.10  0.07   # 44
+ 0.12 -0.10  0.07   # 45
+ 0.12  0.10  0.07   # 46
+ 0.10  0.10  0.07   # 47
+# 3D lines
+0
+# Faces from 3D lines
+0
+# Faces from 3D points
+25
+4 0 3 2 1       # base plate bottom (z = -0.02)
+4 4 5 6 7       # base plate top (z = +0.00)
+4 0 1 5 4       # base plate front (y = -0.15)
+4 2 3 7 6       # base plate back (y = +0.15)
+4 1 2 6 5       # base plate right (x = +0.20)
+4 3 0 4 7       # base plate left (x = -0.20)
+4 12 13 14 15   # port wall top (z = +0.12)
+4 8 9 13 12     # port wall front (y = +0.10)
+4 10 11 15 14   # port wall back (y = +0.12)
+4 9 10 14 13    # port wall right (x = +0.18)
+4 11 8 12 15    # port wall left (x = -0.18)
+4 20 21 22 23   # starboard wall top (z = +0.10)
+4 16 17 21 20   # starboard wall front (y = -0.12)
+4 18 19 23 22   # starboard wall back (y = -0.10)
+4 17 18 22 21   # starboard wall right (x = +0.18)
+4 19 16 20 23   # starboard wall left (x = -0.18)
+4 28 29 30 31   # frame 1 top (z = +0.07)
+4 25 26 30 29   # frame 1 right (x = -0.10)
+4 27 24 28 31   # frame 1 left (x = -0.12)
+4 36 37 38 39   # frame 2 top (z = +0.07)
+4 33 34 38 37   # frame 2 right (x = +0.01)
+4 35 32 36 39   # frame 2 left (x = -0.01)
+4 44 45 46 47   # frame 3 top (z = +0.07)
+4 41 42 46 45   # frame 3 right (x = +0.12)
+4 43 40 44 47   # frame 3 left (x = +0.10)
+# 3D cylinders
+0
+# 3D circles
+0
+)CAO";
+}
+
 geometry::PinholeCamera default_camera() {
   geometry::PinholeCamera cam;
   cam.width = 640;

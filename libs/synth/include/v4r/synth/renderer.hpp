@@ -186,7 +186,7 @@ struct TrajectorySpec {
 std::vector<geometry::SE3> make_trajectory(const TrajectorySpec& spec);
 
 /// Built-in test objects, as `.cao` text (so they go through the same reader as user models).
-/// The same texts are in data/box.cao, data/ship_mockup.cao and data/flange.cao.
+/// The same texts are in data/box.cao, data/ship_mockup.cao, data/flange.cao and data/ship_section.cao.
 std::string box_cao();  ///< 0.20 x 0.15 x 0.10 m box (x, y, z), origin at its centre
 /// Welded steel mockup: base plate 0.40 x 0.30 x 0.02 m with a longitudinal and a transverse
 /// wall; origin at the centre of the plate's top face, z up.
@@ -194,6 +194,10 @@ std::string ship_mockup_cao();
 /// Flange: square plate 0.20 x 0.20 x 0.02 m with a cylinder (radius 0.05 m, height 0.06 m,
 /// axis z) standing on its centre; origin at the centre of the plate's top face, z up.
 std::string flange_cao();
+/// Denser ship section for benchmarks: the base plate with two longitudinal walls and three
+/// transverse frames between them (27 edges visible in the standard views); origin and axes as
+/// the mockup's.
+std::string ship_section_cao();
 
 /// A default 640x480 camera (f = 600 px, principal point at the centre, mild distortion).
 geometry::PinholeCamera default_camera();
