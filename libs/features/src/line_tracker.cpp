@@ -495,34 +495,39 @@ LineMeasurement LineTracker::track(const image::ImageView& img, const Segment2& 
                             img.contains(last.x() + d.x(), last.y() + d.y(), kInsideMargin);
     if (row_inside) {
       // Fast path: the four corners inside => every sample inside (the image is convex).
-      // Two passes: sample addresses and weights (vectorised), then the bilinear blends.
+      // Two passes: sample addresses and weights (vectorisable: the offset is computed in single
+      // precision, exact below 2^24), then the bilinear blends.
       const float nx = static_cast<float>(n.x()), ny = static_cast<float>(n.y());
       const float dx = static_cast<float>(d.x()), dy = static_cast<float>(d.y());
       const int stride = img.stride;
+      const float stride_f = static_cast<float>(stride);
+      int* __restrict off = sample_off_.data();
+      float* __restrict ax = sample_ax_.data();
+      float* __restrict ay = sample_ay_.data();
+      float* __restrict val = sample_val_.data();
       for (int l = 0; l < 3; ++l) {
         const float fx = static_cast<float>(first.x()) + static_cast<float>(l - 1) * dx;
         const float fy = static_cast<float>(first.y()) + static_cast<float>(l - 1) * dy;
-        int* off = &sample_off_[static_cast<std::size_t>(l) * cols];
-        float* ax = &sample_ax_[static_cast<std::size_t>(l) * cols];
-        float* ay = &sample_ay_[static_cast<std::size_t>(l) * cols];
+        const int base = l * cols;
         for (int j = 0; j < cols; ++j) {
           const float x = fx + static_cast<float>(j) * nx, y = fy + static_cast<float>(j) * ny;
-          const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
-          ax[j] = x - static_cast<float>(x0);
-          ay[j] = y - static_cast<float>(y0);
-          off[j] = y0 * stride + x0;
+          const float xi = static_cast<float>(static_cast<int>(x)), yi = static_cast<float>(static_cast<int>(y));
+          ax[base + j] = x - xi;
+          ay[base + j] = y - yi;
+          off[base + j] = static_cast<int>(yi * stride_f + xi);
         }
       }
+      const std::uint8_t* data = img.data;
       const int n3 = 3 * cols;
       for (int k = 0; k < n3; ++k) {
-        const std::uint8_t* r0 = img.data + sample_off_[k];
+        const std::uint8_t* r0 = data + off[k];
         const std::uint8_t* r1 = r0 + stride;
-        const float top = r0[0] + sample_ax_[k] * (static_cast<float>(r0[1]) - r0[0]);
-        const float bot = r1[0] + sample_ax_[k] * (static_cast<float>(r1[1]) - r1[0]);
-        sample_val_[k] = top + sample_ay_[k] * (bot - top);
+        const float top = r0[0] + ax[k] * (static_cast<float>(r0[1]) - r0[0]);
+        const float bot = r1[0] + ax[k] * (static_cast<float>(r1[1]) - r1[0]);
+        val[k] = top + ay[k] * (bot - top);
       }
       for (int j = 0; j < cols; ++j) {
-        prow[j] = (sample_val_[j] + sample_val_[cols + j] + sample_val_[2 * cols + j]) * (1.0f / 3.0f);
+        prow[j] = (val[j] + val[cols + j] + val[2 * cols + j]) * (1.0f / 3.0f);
         inside[j] = 1;
       }
     } else {

@@ -17,6 +17,9 @@ ParamRegistry make_registry(CycleParams& p) {
   r.add("track.min_inlier_ratio", &t.min_inlier_ratio, 0.05, 1.0, "", "rows with an inlier for a line to count as found");
   r.add("track.max_angle", &t.max_angle, 0.01, 1.5, "rad", "largest angle of a fitted line to its window");
   r.add("search.half_width", &p.search_half_width, 2, 128, "px", "window half width for features not found in the last frame");
+  r.add("search.backoff_frames", &p.search_backoff_frames, 0, 1000, "frames",
+        "missed this long (while tracking well), a feature is searched only every backoff_period frames; 0: always");
+  r.add("search.backoff_period", &p.search_backoff_period, 1, 100, "frames", "period of the search of long-missed features");
   // Ellipses (paper 3.2).
   auto& el = p.ellipse;
   r.add("ellipse.half_length", &el.half_length, 2, 64, "px", "tracking line half length across an ellipse");

@@ -317,8 +317,21 @@ int VisionCycle::track_features(const model::Model& model, scene::View& view, co
   auto& out = edgels_[view.camera];
   int found = 0;
   refound_ = 0;
-  for (scene::LineFeature& f : view.lines) {
+  // Back-off (see CycleParams::search_backoff_frames): long-missed features wait their turn,
+  // spread over the frames by their index.
+  const auto backing_off = [&](int frames_missing, std::size_t index) {
+    return first_pass && search_level == 0 && p_.search_backoff_frames > 0 &&
+           frames_missing >= p_.search_backoff_frames &&
+           (frame_ + static_cast<std::int64_t>(index)) % std::max(1, p_.search_backoff_period) != 0;
+  };
+  for (std::size_t fi = 0; fi < view.lines.size(); ++fi) {
+    scene::LineFeature& f = view.lines[fi];
     if (!f.visible || f.ambiguous || f.dropped) continue;
+    if (backing_off(f.frames_missing, fi)) {
+      f.measurement = features::LineMeasurement{};
+      f.retrack = false;
+      continue;
+    }
     // The first pass measures every feature: features not found in the last frame are searched
     // in the wide window (wider still after bad frames), found ones tracked in the narrow one.
     // Later passes start from the fresh pose and measure again, in the narrow window, only what
@@ -332,7 +345,10 @@ int VisionCycle::track_features(const model::Model& model, scene::View& view, co
       f.measurement = t.track(img.grey, f.predicted, f.track, colour);
       if (!first_pass && f.measurement.found) ++refound_;
       last_samples_ += t.params().rows;
-      f.retrack = !f.measurement.found;
+      ++report_.windows;
+      // Re-measured in a later pass: missed in the narrow window (the fresh pose may bring the
+      // edge into it); a miss in the wide search window already covered the narrow one.
+      f.retrack = !f.measurement.found && !search;
       if (f.measurement.found) {
         undistorted_line(K, f.measurement, t.last_inliers(), undistorted_, f.line_n1, f.line_n2);
         for (const Eigen::Vector2d& p : t.last_inliers())
@@ -342,8 +358,15 @@ int VisionCycle::track_features(const model::Model& model, scene::View& view, co
     if (f.measurement.found) ++found;
   }
   const Eigen::Matrix3d R = view.T_cam_obj.rotation();
-  for (scene::ArcFeature& a : view.arcs) {
+  for (std::size_t ai = 0; ai < view.arcs.size(); ++ai) {
+    scene::ArcFeature& a = view.arcs[ai];
     if (!a.visible || a.dropped) continue;
+    if (backing_off(a.frames_missing, view.lines.size() + ai)) {
+      a.measurement = features::EllipseMeasurement{};
+      a.retrack = false;
+      a.edges = 0;
+      continue;
+    }
     if (first_pass || a.retrack) {
       const model::CircleArc& arc = model.arcs()[a.arc];
       const Eigen::Vector3d c_cam = view.T_cam_obj * arc.center;
@@ -365,7 +388,8 @@ int VisionCycle::track_features(const model::Model& model, scene::View& view, co
       a.measurement = t.track(img.grey, curve_, a.track);
       if (!first_pass && a.measurement.found) ++refound_;
       last_samples_ += static_cast<long>(curve_.size());
-      a.retrack = !a.measurement.found;
+      ++report_.windows;
+      a.retrack = !a.measurement.found && !search;
       a.edges = 0;
       if (a.measurement.found) {
         for (const Eigen::Vector2d& p : t.last_inliers()) {
@@ -657,6 +681,7 @@ const CycleReport& VisionCycle::process(scene::Scene& scene, std::span<const Cam
   report_.stamp_s = stamp_s;
   report_.visibility_ms = report_.track_ms = report_.solve_ms = 0.0;
   last_samples_ = 0;
+  report_.windows = 0;
   for (auto& e : edgels_) e.clear();
   auto& objects = scene.objects();
 

@@ -174,3 +174,47 @@ TEST(VisionCycle, LosesTrackWhenTheObjectVanishesAndRegainsIt) {
   }
   EXPECT_EQ(lost, 4);
 }
+
+TEST(VisionCycle, LongMissedFeaturesAreSearchedOnlyEveryFewFrames) {
+  // The box with a phantom edge across its top face: a model line without an image edge, missed
+  // in every frame. After search_backoff_frames misses it is searched every
+  // search_backoff_period-th frame only; the tracking of the box is the same.
+  std::string cao = synth::box_cao();
+  const auto replace = [&](const std::string& from, const std::string& to) {
+    const auto at = cao.find(from);
+    ASSERT_NE(at, std::string::npos) << from;
+    cao.replace(at, from.size(), to);
+  };
+  replace("# 3D points\n8\n", "# 3D points\n10\n");
+  replace("-0.10  0.075  0.05   # 7\n", "-0.10  0.075  0.05   # 7\n-0.05 0.0 0.05\n0.05 0.0 0.05\n");
+  replace("# 3D lines\n0\n", "# 3D lines\n1\n8 9\n");
+  auto m = model::parse_cao(cao, "box_with_phantom");
+  ASSERT_TRUE(m.has_value()) << m.error().to_string();
+  auto model = std::make_shared<const model::Model>(std::move(*m));
+  const Sequence s = make(&synth::box_cao, 0.55, 30);
+
+  struct Run {
+    long windows = 0;
+    double max_error_m = 0.0;
+  };
+  const auto run = [&](int backoff_frames) {
+    pipeline::CycleParams p;
+    p.search_backoff_frames = backoff_frames;
+    pipeline::SingleObjectTracker tracker(model, synth::default_camera(), p);
+    tracker.set_pose(s.truth[0]);
+    Run r;
+    for (int i = 0; i < 30; ++i) {
+      const auto res = tracker.track(view(s.grey[i]));
+      if (i >= 10) r.windows += tracker.cycle().last_report().windows;
+      r.max_error_m = std::max(r.max_error_m, (res.T_cam_obj.translation() - s.truth[i].translation()).norm());
+    }
+    return r;
+  };
+  const Run always = run(0), backoff = run(4);
+  std::printf("[backoff] windows over frames 10-29: %ld always searched, %ld with back-off; max error %.3f / %.3f mm\n",
+              always.windows, backoff.windows, always.max_error_m * 1e3, backoff.max_error_m * 1e3);
+  // Every frame: 1 search window for the phantom; with the back-off one frame in four.
+  EXPECT_GE(always.windows - backoff.windows, 12);
+  EXPECT_LT(backoff.max_error_m, 1e-3);
+  EXPECT_LT(always.max_error_m, 1e-3);
+}

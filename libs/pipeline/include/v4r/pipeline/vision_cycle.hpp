@@ -42,6 +42,11 @@ struct RecoveryParams {
 struct CycleParams {
   features::LineTrackerParams track;    ///< window of features found in the last frame
   int search_half_width = 16;           ///< pixels: half width of the window of features not found (yet)
+  /// A feature missed for this many frames in a row while the view is tracked normally (search
+  /// level 0) is searched only every search_backoff_period-th frame: an edge without contrast in
+  /// this view costs no wide window every frame. 0 disables the back-off.
+  int search_backoff_frames = 4;
+  int search_backoff_period = 4;
   features::EllipseTrackerParams ellipse;  ///< tracking lines of circle arcs
   int circle_samples = 40;              ///< tracking lines per full circle (fewer for arcs)
   double circle_sigma_px = 0.7;         ///< a-priori noise of an ellipse edge point, pixels
@@ -91,6 +96,7 @@ struct CycleReport {
   double solve_ms = 0.0;       ///< pose estimation, view fusion and filter
   int degrade_level = 0;       ///< 0 none, 1 fewer samples, 2 features left out
   int features_dropped = 0;    ///< left out by the budget this cycle
+  int windows = 0;             ///< feature windows measured (tracking and search, every pass)
   std::int64_t overruns = 0;   ///< cycles so far that took longer than the budget
   std::vector<ObjectReport> objects;
 };
@@ -113,6 +119,8 @@ class VisionCycle {
   /// `now` is the clock used for timing and the budget (injectable for tests).
   explicit VisionCycle(const CycleParams& params = {}, Clock::time_point (*now)() = &Clock::now);
   [[nodiscard]] const CycleParams& params() const { return p_; }
+  /// The report of the last process() call.
+  [[nodiscard]] const CycleReport& last_report() const { return report_; }
   /// Replaces the parameters (rebuilds the trackers: allocates; not for the real-time path).
   void set_params(const CycleParams& params);
 
