@@ -40,6 +40,10 @@ ParamRegistry make_registry(CycleParams& p) {
   r.add("junction.enabled", &p.use_junctions, "intersect tracked edges at model junctions");
   r.add("junction.min_angle", &p.junction_min_angle, 0.0, 1.5707963, "rad", "smallest angle between intersected edges");
   r.add("junction.sigma_scale", &p.junction_sigma_scale, 0.1, 100.0, "", "junction sigma = line sigma * this / sin(angle)");
+  r.add("junction.tangent_tol", &p.tangent_junction_tol_px, 0.1, 20.0, "px",
+        "a line-arc junction with a common tangent is valid when the measured line passes this close to the ellipse's tangent point");
+  r.add("junction.tangent_sigma_scale", &p.tangent_junction_sigma_scale, 0.1, 100.0, "",
+        "tangent junction sigma = line sigma * this");
   // Pose (paper 5).
   auto& s = p.solver;
   r.add("solver.line_sigma", &p.line_sigma_px, 0.01, 20.0, "px", "a-priori noise of a tracked line");

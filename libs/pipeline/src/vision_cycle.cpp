@@ -403,6 +403,73 @@ int VisionCycle::track_features(const model::Model& model, scene::View& view, co
   return found;
 }
 
+void VisionCycle::add_tangent_junctions(const model::Model& model, const scene::View& view, const scene::Camera& cam) {
+  // Junctions where a straight edge runs into a circle arc along its tangent (a slot, a rounded
+  // corner): the two image curves touch instead of crossing, so their intersection is undefined.
+  // The junction is the point of the measured ellipse whose tangent is parallel to the measured
+  // line (of the two, the one nearer the predicted junction); it counts when the line passes
+  // within tangent_junction_tol_px of it, i.e. when the two edges agree where they meet.
+  constexpr double kTangentCos = 0.996;  // the model edge and the arc's tangent within 5 degrees
+  const geometry::PinholeCamera& K = cam.intrinsics;
+  const auto& arcs = model.arcs();
+  const auto& junctions = model.junctions();
+  const auto& lines = model.lines();
+  for (const scene::ArcFeature& a : view.arcs) {
+    if (!a.visible || a.dropped || !a.measurement.found) continue;
+    const model::CircleArc& arc = arcs[a.arc];
+    if (arc.end - arc.start >= kTwoPi - 1e-9) continue;  // a full circle has no ends
+    const Eigen::Vector3d y_axis = arc.normal.cross(arc.x_axis);
+    const double tol = 1e-6 * std::max(1.0, arc.radius);
+    for (const double th : {arc.start, arc.end}) {
+      const Eigen::Vector3d E = arc.center + arc.radius * (std::cos(th) * arc.x_axis + std::sin(th) * y_axis);
+      const Eigen::Vector3d tangent = -std::sin(th) * arc.x_axis + std::cos(th) * y_axis;
+      for (std::size_t j = 0; j < junctions.size(); ++j) {
+        const model::Junction& J = junctions[j];
+        if ((J.p - E).squaredNorm() > tol * tol) continue;
+        for (const model::Index li : J.lines) {
+          const model::LineEdge& e = lines[li];
+          const Eigen::Vector3d dir = (junctions[e.b].p - junctions[e.a].p).normalized();
+          if (std::abs(dir.dot(tangent)) < kTangentCos) continue;
+          const scene::LineFeature& f = view.lines[li];
+          if (!f.visible || f.ambiguous || f.dropped || !f.measurement.found) continue;
+          if ((f.X1 - J.p).squaredNorm() > 1e-12 && (f.X2 - J.p).squaredNorm() > 1e-12) continue;  // end hidden
+          const Eigen::Vector3d Pj = view.T_cam_obj * J.p;
+          if (Pj.z() <= 1e-6) continue;
+          const Eigen::Vector2d predicted = K.project(Pj);
+          // Tangent point: x(t) = c + a cos t u + b sin t v has x'(t) parallel to d where
+          // -a sin t (u x d) + b cos t (v x d) = 0.
+          const features::Ellipse2& el = a.measurement.ellipse;
+          const Eigen::Vector2d u(std::cos(el.angle), std::sin(el.angle)), v(-u.y(), u.x());
+          const Eigen::Vector2d p1 = f.measurement.line.a, p2 = f.measurement.line.b;
+          const Eigen::Vector2d d = (p2 - p1).normalized();
+          const auto cross = [](const Eigen::Vector2d& x, const Eigen::Vector2d& y) { return x.x() * y.y() - x.y() * y.x(); };
+          const double t0 = std::atan2(el.b * cross(v, d), el.a * cross(u, d));
+          Eigen::Vector2d best = Eigen::Vector2d::Zero();
+          double best_dist = std::numeric_limits<double>::infinity();
+          for (const double t1 : {t0, t0 + 0.5 * kTwoPi}) {
+            const Eigen::Vector2d x = el.center + el.a * std::cos(t1) * u + el.b * std::sin(t1) * v;
+            const double dist = (x - predicted).norm();
+            if (dist < best_dist) {
+              best_dist = dist;
+              best = x;
+            }
+          }
+          if (!(best_dist <= p_.search_half_width)) continue;
+          const double gap = std::abs(cross(d, best - p1));  // the line's distance from the tangent point
+          if (!(gap <= p_.tangent_junction_tol_px)) continue;
+          if (point_obs_.size() >= point_obs_.capacity()) return;  // (capacity: one per junction)
+          estimation::PointObservation o;
+          o.X_obj = J.p;
+          o.xn = K.pixel_to_normalized(best);
+          o.sigma_px = p_.line_sigma_px * p_.tangent_junction_sigma_scale;
+          point_obs_.push_back(o);
+          ++tangent_junctions_;
+        }
+      }
+    }
+  }
+}
+
 void VisionCycle::collect_observations(const scene::Object& obj, scene::View& view, const scene::Camera& cam) {
   const model::Model& model = *obj.model;
   const geometry::PinholeCamera& K = cam.intrinsics;
@@ -426,9 +493,11 @@ void VisionCycle::collect_observations(const scene::Object& obj, scene::View& vi
   // intersection (Foerstner: the intersection of the two measured image lines) is a point
   // observation of the junction. Of several edges, the pair meeting at the largest angle is used.
   point_obs_.clear();
+  tangent_junctions_ = 0;
   if (p_.use_junctions) {
     const double sin_min = std::sin(p_.junction_min_angle);
     const auto& junctions = model.junctions();
+    add_tangent_junctions(model, view, cam);
     for (std::size_t j = 0; j < junctions.size(); ++j) {
       const model::Junction& J = junctions[j];
       if (J.lines.size() < 2) continue;
@@ -592,6 +661,7 @@ void VisionCycle::process_view(scene::Object& obj, scene::View& view, const scen
     rep.lines_used += lines_used;
     rep.circle_points_used += circle_used;
     rep.junctions_used += junctions_used;
+    rep.tangent_junctions += tangent_junctions_;
     rep.outliers += outliers;
     rep.rms_px = result.rms_px;
   }

@@ -58,6 +58,11 @@ struct CycleParams {
   bool use_junctions = true;            ///< intersect tracked edges at model junctions (paper 3.3)
   double junction_min_angle = 0.35;     ///< radians: smallest angle between edges intersected at a junction
   double junction_sigma_scale = 1.5;    ///< junction sigma = line sigma * this / sin(angle)
+  /// Line-arc junctions with a common tangent (paper 3.3): the junction is the point of the
+  /// measured ellipse whose tangent is parallel to the measured line, valid when the line passes
+  /// within this distance of it (the two edges touch).
+  double tangent_junction_tol_px = 1.5;
+  double tangent_junction_sigma_scale = 6.0;  ///< its sigma = line sigma * this (weak along the line)
   int min_lines = 4;                    ///< fewer observations than this: the view pose is not updated
   double degraded_ratio = 0.5;          ///< used / visible below this: status degraded
   int refine_passes = 2;                ///< track + solve passes per frame (later ones re-measure missed features from the new pose)
@@ -79,6 +84,7 @@ struct ObjectReport {
   int features_used = 0;   ///< observations kept by the pose solve (lines, ellipse points, junctions)
   int outliers = 0;
   int lines_used = 0, circle_points_used = 0, junctions_used = 0;
+  int tangent_junctions = 0;  ///< line-arc junctions with a common tangent observed (in junctions_used when inliers)
   double rms_px = 0.0;
   double quality = 0.0;
   int iterations = 0;
@@ -139,12 +145,14 @@ class VisionCycle {
   int track_features(const model::Model& model, scene::View& view, const scene::Camera& cam, const CameraImage& img,
                      bool first_pass, int search_level);
   void collect_observations(const scene::Object& obj, scene::View& view, const scene::Camera& cam);
+  void add_tangent_junctions(const model::Model& model, const scene::View& view, const scene::Camera& cam);
   void process_view(scene::Object& obj, scene::View& view, const scene::Camera& cam, const CameraImage& img,
                     ObjectReport& rep);
   void fuse_and_filter(scene::Scene& scene, scene::Object& obj, ObjectReport& rep, double stamp_s);
 
   CycleParams p_;
   Clock::time_point (*now_)();
+  int tangent_junctions_ = 0;  // line-arc tangent junctions observed in the last collect_observations
   int refound_ = 0;  // features missed in the first pass and found by a later one (this call)
   features::LineTracker tracker_, reduced_tracker_;
   std::vector<features::LineTracker> searchers_;  // per search level
