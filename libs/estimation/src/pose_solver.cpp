@@ -331,6 +331,8 @@ int PoseSolver::count_active() const {
   return static_cast<int>(std::count(active_.begin(), active_.end(), kActive));
 }
 
+int PoseSolver::min_active() const { return has_prior_ ? 1 : std::max(p_.min_observations, 1); }
+
 namespace {
 
 /// H += rho J^T J (upper triangle; mirrored by the caller), g += rho J^T r for M residuals.
@@ -424,6 +426,17 @@ PoseSolver::NormalEquations PoseSolver::linearise(const SE3& T, const Observatio
     accumulate<2>(rw2, J2, rho(s), ne.H, ne.g);
     add(s, rw2.squaredNorm(), rw2.squaredNorm(), 2, 0.0);
   }
+  if (has_prior_) {
+    // r = log(T Tp^-1); for a left update exp(d) T, r(d) ~ d + r: the Jacobian is U.
+    const Vector6d rw = prior_U_ * (T * prior_T_.inverse()).log();
+    ne.H.noalias() += prior_U_.transpose() * prior_U_;
+    ne.g.noalias() += prior_U_.transpose() * rw;
+    const double sq = rw.squaredNorm();
+    ne.chi2 += sq;
+    ne.weighted_chi2 += sq;
+    ne.frozen_chi2 += sq;
+    ne.residuals += kUnknowns;
+  }
   ne.H.triangularView<Eigen::StrictlyLower>() = ne.H.transpose();
   return ne;
 }
@@ -462,6 +475,7 @@ double PoseSolver::statistics(const SE3& T, const Matrix6d& H_inv, const Observa
     Q.diagonal().array() += kCofactorEps;
     chi2_[s] = std::max(e.rw.dot(Q.inverse() * e.rw), 0.0);
   }
+  if (has_prior_ && !standardised) frozen_cost += (prior_U_ * (T * prior_T_.inverse()).log()).squaredNorm();
   return frozen_cost;
 }
 
@@ -518,7 +532,7 @@ SolveStatus PoseSolver::gauss_newton(SE3& T, const ObservationSet& obs, bool rob
   double cost = last.weighted_chi2 + kPenalty * last.unusable;
   NormalEquations trial;
   for (int it = 0; it < max_iterations; ++it) {
-    if (last.residuals < kUnknowns || count_active() < std::max(p_.min_observations, 1))
+    if (last.residuals < kUnknowns || count_active() < min_active())
       return SolveStatus::kTooFewObservations;
     if (!last.H.allFinite() || !last.g.allFinite()) return SolveStatus::kDiverged;
     Vector6d s;
@@ -595,6 +609,16 @@ PoseResult PoseSolver::solve(const SE3& T_init, const ObservationSet& obs, const
   PoseResult res;
   res.T_cam_obj = T_init;
   prepare(obs);
+  has_prior_ = false;
+  if (obs.prior != nullptr && obs.prior->information.allFinite() && obs.prior->T_cam_obj.translation().allFinite() &&
+      obs.prior->T_cam_obj.quaternion().coeffs().allFinite()) {
+    const Eigen::LLT<Matrix6d> llt(0.5 * (obs.prior->information + obs.prior->information.transpose()));
+    if (llt.info() == Eigen::Success) {
+      prior_U_ = llt.matrixU();
+      prior_T_ = obs.prior->T_cam_obj;
+      has_prior_ = true;
+    }
+  }
   res.observations = static_cast<int>(active_.size());
 
   const auto finish = [&](SolveStatus status) {
@@ -615,7 +639,7 @@ PoseResult PoseSolver::solve(const SE3& T_init, const ObservationSet& obs, const
   if (!T_init.translation().allFinite() || !T_init.quaternion().coeffs().allFinite())
     return finish(SolveStatus::kDiverged);
   if (!(p_.focal_px > 0.0) || !std::isfinite(p_.focal_px)) return finish(SolveStatus::kDegenerate);
-  if (count_active() < std::max(p_.min_observations, 1)) return finish(SolveStatus::kTooFewObservations);
+  if (count_active() < min_active()) return finish(SolveStatus::kTooFewObservations);
 
   const bool detect = p_.max_outlier_rounds > 0 && p_.outlier_threshold > 0.0;
   const std::size_t n = active_.size();
@@ -683,7 +707,7 @@ PoseResult PoseSolver::solve(const SE3& T_init, const ObservationSet& obs, const
       }
     }
     const bool can_remove = worst_slot < n && res.outlier_rounds < p_.max_outlier_rounds &&
-                            count_active() - 1 >= std::max(p_.min_observations, 1) &&
+                            count_active() - 1 >= min_active() &&
                             ne.residuals - dims_[worst_slot] > kUnknowns;
     if (worst > thr && can_remove) {
       active_[worst_slot] = kRejected;
@@ -714,7 +738,7 @@ PoseResult PoseSolver::solve(const SE3& T_init, const ObservationSet& obs, const
       evaluate(obs, s, T, R, /*jacobian=*/false, e);
       if (e.m == 0) active_[s] = kRejected;
     }
-    if (ne.residuals < kUnknowns || count_active() < std::max(p_.min_observations, 1))
+    if (ne.residuals < kUnknowns || count_active() < min_active())
       return finish(SolveStatus::kTooFewObservations);
   }
   if (!invert_normal(ne.H, p_.degeneracy_ratio, H_inv)) return finish(SolveStatus::kDegenerate);

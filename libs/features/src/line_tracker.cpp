@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include <Eigen/Eigenvalues>
+
 namespace v4r::features {
 
 namespace {
@@ -46,6 +48,8 @@ LineTrackerParams sanitize(LineTrackerParams p) {
   if (!(p.end_margin >= 0.0)) p.end_margin = def.end_margin;
   p.end_margin = std::min(p.end_margin, 0.45);
   if (!(p.min_gradient >= 0.0f)) p.min_gradient = def.min_gradient;
+  if (!(p.gradient_noise_factor >= 0.0f) || !std::isfinite(p.gradient_noise_factor))
+    p.gradient_noise_factor = def.gradient_noise_factor;
   if (!(p.inlier_tolerance > 0.0)) p.inlier_tolerance = def.inlier_tolerance;
   if (!(p.min_inlier_ratio >= 0.0)) p.min_inlier_ratio = def.min_inlier_ratio;
   if (!(p.max_angle > 0.0)) p.max_angle = def.max_angle;
@@ -75,6 +79,8 @@ LineTracker::LineTracker(const LineTrackerParams& params) : p_(sanitize(params))
   sample_ax_.assign(3 * static_cast<std::size_t>(cols_), 0.0f);
   sample_ay_.assign(3 * static_cast<std::size_t>(cols_), 0.0f);
   sample_val_.assign(3 * static_cast<std::size_t>(cols_), 0.0f);
+  colour_row_.assign(3 * static_cast<std::size_t>(cols_), 0.0f);
+  colour_grad_.assign(3 * rows * static_cast<std::size_t>(cols_), 0.0f);
   row_v_.assign(rows, 0.0);
   row_centre_.assign(rows, Eigen::Vector2d::Zero());
   edgels_.assign(rows * static_cast<std::size_t>(p_.max_candidates_per_row), Edgel{});
@@ -306,11 +312,11 @@ int LineTracker::extract_edgels(int want, bool cues, int* rejected) {
     for (int j = 0; j < 4 && j < cols; ++j) inside_run = inside[j] ? inside_run + 1 : 0;
     for (int j = 2; j < cols - 2; ++j) {
       inside_run = inside[j + 2] ? inside_run + 1 : 0;
-      if (inside_run < 5) continue;
+      if (inside_run < 5 || j < col_lo_ || j > col_hi_) continue;
       const float gj = g[j];
       const int sign = gj > 0.0f ? 1 : -1;
       const float sg = sign * gj;
-      if (!(sg >= p_.min_gradient) || sg <= 0.0f) continue;
+      if (!(sg >= thr_) || sg <= 0.0f) continue;
       if (want != 0 && sign != want) continue;
       const float left = sign * g[j - 1], right = sign * g[j + 1];
       if (!(sg >= left && sg > right)) continue;
@@ -447,7 +453,7 @@ void LineTracker::fit_pool(int pool_size, int valid_rows, LineMeasurement& m) {
 }
 
 LineMeasurement LineTracker::track(const image::ImageView& img, const Segment2& predicted, LineTrackState& state,
-                                   const image::ColourView* colour) {
+                                   const image::ColourView* colour, SearchRange range) {
   LineMeasurement m;
   last_inliers_.clear();
   if (img.empty() || !finite(predicted.a) || !finite(predicted.b)) return m;
@@ -466,12 +472,20 @@ LineMeasurement LineTracker::track(const image::ImageView& img, const Segment2& 
   d_ = d;
   n_ = n;
   const int rows = p_.rows, w = p_.half_width, cols = cols_;
+  // Columns of the search range (offset = column - w), within 2..cols-3 (peaks need neighbours).
+  col_lo_ = 2;
+  col_hi_ = cols - 3;
+  if (std::isfinite(range.lo) && range.lo > -w) col_lo_ = std::max(col_lo_, static_cast<int>(std::ceil(range.lo)) + w);
+  if (std::isfinite(range.hi) && range.hi < w) col_hi_ = std::min(col_hi_, static_cast<int>(std::floor(range.hi)) + w);
+  if (col_hi_ < col_lo_) return m;
   const double margin = p_.end_margin * len;
   const double step = (len - 2.0 * margin) / (rows - 1);  // pixels between rows (subsampling)
   const double mid = 0.5 * (rows - 1);
   const Eigen::Vector2d start = predicted.a + margin * d;
   const int want = state.polarity > 0 ? 1 : (state.polarity < 0 ? -1 : 0);
   int valid_rows = 0;
+  double abs_sum = 0.0;  // sum of |gradient| over the valid rows' inside columns (threshold)
+  long abs_count = 0;
   for (int i = 0; i < rows; ++i) {
     const Eigen::Vector2d c = start + (i * step) * d;
     row_centre_[i] = c;
@@ -544,9 +558,20 @@ LineMeasurement LineTracker::track(const image::ImageView& img, const Segment2& 
     float* g = &grad_[static_cast<std::size_t>(i) * cols];
     g[0] = 0.0f;
     g[cols - 1] = 0.0f;
-    for (int j = 1; j < cols - 1; ++j) g[j] = 0.5f * (prow[j + 1] - prow[j - 1]);
+    float row_abs = 0.0f;
+    int row_count = 0;
+    for (int j = 1; j < cols - 1; ++j) {
+      g[j] = 0.5f * (prow[j + 1] - prow[j - 1]);
+      const bool in = inside[j - 1] && inside[j + 1];
+      row_abs += in ? std::abs(g[j]) : 0.0f;
+      row_count += in ? 1 : 0;
+    }
+    abs_sum += row_abs;
+    abs_count += row_count;
   }
   if (valid_rows < kMinInliers) return m;
+  thr_ = std::max(p_.min_gradient,
+                  p_.gradient_noise_factor * static_cast<float>(abs_sum / static_cast<double>(std::max(abs_count, 1L))));
 
   // Appearance checks of the learned object sides (paper 4.1).
   bool cues = false;
@@ -575,16 +600,46 @@ LineMeasurement LineTracker::track(const image::ImageView& img, const Segment2& 
     cues = true;
   }
 
-  // 3-5. Edgels, RANSAC, measurement. With cues, the candidates passing the check must still be
-  // able to make a found edge; else (the light changed abruptly, the face is shadowed, ...) the
-  // edge is searched again without the check, and the result says so.
+  // 3-5. Edgels, RANSAC, measurement on the grey gradient; on a colour image, when that finds
+  // no edge, again on the colour gradient (an edge between surfaces of equal brightness).
+  m.threshold = thr_;
+  detect(want, cues, valid_rows, m);
+  if (!m.found && colour_ != nullptr && p_.use_colour_gradient) {
+    float axis[3];
+    if (colour_gradient(state, axis)) {
+      LineMeasurement mc;
+      const int want_c = state.colour_polarity > 0 ? 1 : (state.colour_polarity < 0 ? -1 : 0);
+      detect(want_c, cues, valid_rows, mc);
+      if (mc.found) {
+        mc.colour_gradient = true;
+        mc.threshold = thr_;
+        state.colour_polarity = mc.polarity;
+        for (int c = 0; c < 3; ++c) state.colour_axis[c] = axis[c];
+        m = mc;
+        if (p_.use_cues) learn_sides(state, m, m.cue_fallback);
+        return m;
+      }
+    }
+  }
+  if (!m.found) return m;
+  state.polarity = m.polarity;
+  // The appearance of the object sides is learned from the inliers; after a fallback, from scratch.
+  if (p_.use_cues) learn_sides(state, m, m.cue_fallback);
+  return m;
+}
+
+void LineTracker::detect(int want, bool cues, int valid_rows, LineMeasurement& m) {
+  // With cues, the candidates passing the check must still be able to make a found edge; else
+  // (the light changed abruptly, the face is shadowed, ...) the edge is searched again without
+  // the check, and the result says so.
+  const float threshold = m.threshold;
   bool fallback = false;
   if (cues) {
     int rejected = 0;
     const int pool_size = extract_edgels(want, true, &rejected);
     m.cue_rejected = rejected;
     int rows_with = 0;
-    for (int i = 0; i < rows; ++i) rows_with += row_count_[i] > 0 ? 1 : 0;
+    for (int i = 0; i < p_.rows; ++i) rows_with += row_count_[i] > 0 ? 1 : 0;
     const int need = std::max(kMinInliers, static_cast<int>(std::ceil(p_.min_inlier_ratio * valid_rows)));
     if (rows_with >= need) fit_pool(pool_size, valid_rows, m);
     if (!m.found) {
@@ -592,15 +647,72 @@ LineMeasurement LineTracker::track(const image::ImageView& img, const Segment2& 
       m = LineMeasurement{};
       m.cue_rejected = rejected;
       m.cue_fallback = true;
+      m.threshold = threshold;
       last_inliers_.clear();
     }
   }
   if (!cues || fallback) fit_pool(extract_edgels(want, false, nullptr), valid_rows, m);
-  if (!m.found) return m;
-  state.polarity = m.polarity;
-  // The appearance of the object sides is learned from the inliers; after a fallback, from scratch.
-  if (p_.use_cues) learn_sides(state, m, fallback);
-  return m;
+}
+
+bool LineTracker::colour_gradient(const LineTrackState& state, float axis[3]) {
+  // Per row: B, G, R sampled like the grey patch (mean of the three lines at -1, 0, +1 pixel
+  // along the edge), central differences across; the 3x3 scatter of the per-channel gradients
+  // over the window gives the principal colour direction, on which the gradients are projected.
+  const int rows = p_.rows, cols = cols_, w = p_.half_width;
+  Eigen::Matrix3f S = Eigen::Matrix3f::Zero();
+  for (int i = 0; i < rows; ++i) {
+    if (!row_valid_[i]) continue;
+    const Eigen::Vector2d first = row_centre_[i] - static_cast<double>(w) * n_;
+    const unsigned char* inside = &col_inside_[static_cast<std::size_t>(i) * cols];
+    for (int j = 0; j < cols; ++j) {
+      float acc[3] = {0.0f, 0.0f, 0.0f};
+      const Eigen::Vector2d q = first + static_cast<double>(j) * n_;
+      for (int l = -1; l <= 1; ++l) {
+        float bgr[3];
+        colour_->sample(q.x() + l * d_.x(), q.y() + l * d_.y(), bgr);
+        acc[0] += bgr[0];
+        acc[1] += bgr[1];
+        acc[2] += bgr[2];
+      }
+      for (int c = 0; c < 3; ++c) colour_row_[static_cast<std::size_t>(c) * cols + j] = acc[c] * (1.0f / 3.0f);
+    }
+    float* cg = &colour_grad_[static_cast<std::size_t>(i) * cols * 3];
+    for (int j = 0; j < cols; ++j) {
+      const bool in = j > 0 && j < cols - 1 && inside[j - 1] && inside[j + 1];
+      Eigen::Vector3f gv = Eigen::Vector3f::Zero();
+      if (in)
+        for (int c = 0; c < 3; ++c)
+          gv[c] = 0.5f * (colour_row_[static_cast<std::size_t>(c) * cols + j + 1] -
+                          colour_row_[static_cast<std::size_t>(c) * cols + j - 1]);
+      cg[3 * j] = gv[0];
+      cg[3 * j + 1] = gv[1];
+      cg[3 * j + 2] = gv[2];
+      S.noalias() += gv * gv.transpose();
+    }
+  }
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3f> es(S);
+  if (es.info() != Eigen::Success || !(es.eigenvalues()[2] > 0.0f)) return false;
+  Eigen::Vector3f e = es.eigenvectors().col(2);
+  // Sign: along the last colour edge's direction when known, else towards brighter.
+  const Eigen::Vector3f ref(state.colour_axis[0], state.colour_axis[1], state.colour_axis[2]);
+  const float s = ref.squaredNorm() > 0.5f ? e.dot(ref) : e.sum();
+  if (s < 0.0f) e = -e;
+  double abs_sum = 0.0;
+  long abs_count = 0;
+  for (int i = 0; i < rows; ++i) {
+    float* g = &grad_[static_cast<std::size_t>(i) * cols];
+    if (!row_valid_[i]) continue;
+    const float* cg = &colour_grad_[static_cast<std::size_t>(i) * cols * 3];
+    for (int j = 0; j < cols; ++j) {
+      g[j] = e[0] * cg[3 * j] + e[1] * cg[3 * j + 1] + e[2] * cg[3 * j + 2];
+      abs_sum += std::abs(g[j]);
+      abs_count += g[j] != 0.0f ? 1 : 0;
+    }
+  }
+  thr_ = std::max(p_.min_gradient,
+                  p_.gradient_noise_factor * static_cast<float>(abs_sum / static_cast<double>(std::max(abs_count, 1L))));
+  for (int c = 0; c < 3; ++c) axis[c] = e[c];
+  return true;
 }
 
 }  // namespace v4r::features

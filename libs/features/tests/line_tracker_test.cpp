@@ -175,6 +175,50 @@ TEST(LineTracker, ParallelWeakerEdgeAndClutter) {
   EXPECT_LE(err.max, 0.3);
 }
 
+TEST(LineTracker, SearchRangeSplitsAThinWallIntoItsTwoEdges) {
+  // A thin bright wall 8 px wide: two edges of opposite polarity, the far one stronger. The
+  // prediction of each lies between them (3 px off); split at the middle, each window finds its
+  // own edge, never the other one.
+  constexpr int kW = 240, kH = 240, kCases = 40;
+  std::mt19937 rng(77);
+  std::uniform_real_distribution<double> angle(0.0, kPi), uni(0.0, 1.0);
+  LineTracker tracker;
+  ErrorStats err;
+  int found = 0, unsplit_wrong = 0;
+  for (int k = 0; k < kCases; ++k) {
+    const TrueLine near{{kW / 2.0 + uni(rng) - 0.5, kH / 2.0 + uni(rng) - 0.5}, dir(angle(rng))};
+    const Eigen::Vector2d nrm = near.normal();
+    const TrueLine far{near.p + 8.0 * nrm, near.t};
+    Canvas c = step_edge(kW, kH, near, 90.f, 150.f);  // near edge: +60 along nrm
+    c.half_plane(far.p, nrm, 20.f);                   // far edge: 150 -> 20, stronger (-130)
+    const auto buf = c.quantize(4.0, 500 + k);
+    // Each edge predicted 3 px towards the other; each window may search up to the middle (4 px).
+    const Segment2 pred_near = segment(near.p + 3.0 * nrm, near.t, 120.0);
+    const Segment2 pred_far = segment(far.p - 3.0 * nrm, far.t, 120.0);
+    LineTrackState s1, s2, s3;
+    const LineMeasurement m1 = tracker.track(view_of(buf, kW, kH), pred_near, s1, nullptr, SearchRange{-1e9, 1.0});
+    if (m1.found) {
+      ++found;
+      err.add(near.distance(m1.line.a));
+      err.add(near.distance(m1.line.b));
+    }
+    const LineMeasurement m2 = tracker.track(view_of(buf, kW, kH), pred_far, s2, nullptr, SearchRange{-1.0, 1e9});
+    if (m2.found) {
+      ++found;
+      err.add(far.distance(m2.line.a));
+      err.add(far.distance(m2.line.b));
+    }
+    // Unsplit, the near edge's window takes the stronger far edge.
+    const LineMeasurement m3 = tracker.track(view_of(buf, kW, kH), pred_near, s3);
+    if (m3.found && far.distance(m3.line.a) < 1.0) ++unsplit_wrong;
+  }
+  std::printf("[thin wall split] found %d/%d  error mean %.4f px max %.4f px; unsplit: %d/%d on the wrong edge\n",
+              found, 2 * kCases, err.mean(), err.max, unsplit_wrong, kCases);
+  EXPECT_EQ(found, 2 * kCases);
+  EXPECT_LE(err.max, 0.5);  // (no measurement on the other edge, 8 px away)
+  EXPECT_GT(unsplit_wrong, kCases / 2);  // the split is what makes the difference
+}
+
 TEST(LineTracker, PolarityStateRejectsStrongerOppositeEdge) {
   constexpr int kW = 240, kH = 240;
   LineTracker tracker;

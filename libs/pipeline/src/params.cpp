@@ -10,7 +10,11 @@ ParamRegistry make_registry(CycleParams& p) {
   r.add("track.rows", &t.rows, 3, 256, "", "samples along an edge (fixed window height; long edges subsampled)");
   r.add("track.half_width", &t.half_width, 2, 64, "px", "tracking window half width across the edge");
   r.add("track.end_margin", &t.end_margin, 0.0, 0.45, "", "fraction of an edge left out at each end");
-  r.add("track.min_gradient", &t.min_gradient, 0.0, 255.0, "grey/px", "weakest edge pixel gradient");
+  r.add("track.min_gradient", &t.min_gradient, 0.0, 255.0, "grey/px", "absolute floor of an edge pixel's gradient");
+  r.add("track.gradient_noise_factor", &t.gradient_noise_factor, 0.0, 20.0, "",
+        "edge pixels exceed this times the window's mean |gradient| (threshold follows noise, texture, contrast)");
+  r.add("track.use_colour_gradient", &t.use_colour_gradient,
+        "colour input: search a window again on the colour gradient when the grey one shows no edge");
   r.add("track.max_candidates_per_row", &t.max_candidates_per_row, 1, 16, "", "edge pixel candidates kept per row");
   r.add("track.ransac_iterations", &t.ransac_iterations, 1, 10000, "", "RANSAC hypotheses per line");
   r.add("track.inlier_tolerance", &t.inlier_tolerance, 0.05, 10.0, "px", "RANSAC inlier distance");
@@ -67,9 +71,13 @@ ParamRegistry make_registry(CycleParams& p) {
   // Cycle.
   r.add("cycle.min_lines", &p.min_lines, 3, 1000, "", "fewer found lines: the pose is not updated");
   r.add("cycle.degraded_ratio", &p.degraded_ratio, 0.0, 1.0, "", "used/visible below this: status degraded");
+  r.add("cycle.prior_fallback", &p.prior_fallback,
+        "features that fix fewer than 6 dof: solve with the prediction as prior (degraded, not lost)");
   r.add("cycle.refine_passes", &p.refine_passes, 1, 5, "", "track+solve passes per frame");
   r.add("cycle.ambiguity_angle", &p.ambiguity_angle, 0.0, 1.0, "rad", "edges closer than this in direction count as parallel");
-  r.add("cycle.ambiguity_margin", &p.ambiguity_margin_px, -100.0, 100.0, "px", "parallel edges nearer than half_width + this are ambiguous");
+  r.add("cycle.ambiguity_margin", &p.ambiguity_margin_px, -100.0, 100.0, "px", "parallel edges nearer than half_width + this are side by side");
+  r.add("cycle.split_min_px", &p.split_min_px, 0.5, 1000.0, "px",
+        "side-by-side edges get windows split half way when each keeps this much room; else they are ambiguous");
   r.add("cycle.ambiguity_min_overlap", &p.ambiguity_min_overlap, 0.0, 1.0, "", "overlap (fraction) for ambiguity");
   // Time budget (paper 3.4).
   r.add("budget.cycle_ms", &p.budget.cycle_ms, 0.0, 10000.0, "ms", "cycle time budget (0: none)");

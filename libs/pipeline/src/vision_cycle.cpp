@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 
 namespace v4r::pipeline {
 
@@ -208,13 +209,21 @@ void VisionCycle::predict_view(scene::Object& obj, scene::View& view, const scen
 
 void VisionCycle::mark_ambiguous(scene::View& view, const scene::Camera& cam) const {
   // Two visible edges that project (almost) parallel, side by side and closer than a tracking
-  // window is wide (a thin face seen edge-on, a double contour) cannot be told apart by their
-  // windows: both are left out until the view separates them.
+  // window is wide (a thin face seen obliquely, a double contour) would both find the stronger
+  // edge in their windows. Their windows are split half way between them (each searches only
+  // its own side); when that leaves less than split_min_px towards the other edge, the pair is
+  // tracked as one: the visible one (the first of two) is measured against the pair's mid-line
+  // with a sigma widened by half their separation, and the other is left out (a thin plate's
+  // two edges, a face seen edge-on whose far edge runs along the silhouette).
   const geometry::PinholeCamera& K = cam.intrinsics;
-  const double max_dist = p_.track.half_width + p_.ambiguity_margin_px;
+  // (The wide search window reaches further than the tracking window.)
+  const double max_dist = std::max(p_.track.half_width, p_.search_half_width) + p_.ambiguity_margin_px;
   const double cos_parallel = std::cos(p_.ambiguity_angle);
   for (scene::LineFeature& f : view.lines) {
     f.ambiguous = false;
+    f.merged = false;
+    f.sigma_px = 0.0;
+    f.range = features::SearchRange{};
     if (!f.visible && !f.grazing) continue;
     f.predicted.a = K.project(view.T_cam_obj * f.X1);
     f.predicted.b = K.project(view.T_cam_obj * f.X2);
@@ -241,8 +250,34 @@ void VisionCycle::mark_ambiguous(scene::View& view, const scene::Camera& cam) co
       if (overlap < p_.ambiguity_min_overlap * std::min(flen, glen)) continue;
       // Edges that share a junction and continue each other are not side by side.
       if (std::max(da, db) < 0.5 && (s0 >= flen - 0.5 || s1 <= 0.5)) continue;
-      f.ambiguous = f.ambiguous || f.visible;
-      g.ambiguous = g.ambiguous || g.visible;
+      // Split: each window ends half way to the other edge (signed offsets along its normal).
+      const double s_g = 0.5 * (fn.dot(g.predicted.a - fa) + fn.dot(g.predicted.b - fa));  // g seen from f
+      const Eigen::Vector2d gu = gd / glen, gn(-gu.y(), gu.x());
+      const double s_f = gn.dot(0.5 * (f.predicted.a + f.predicted.b) - g.predicted.a);   // f seen from g
+      const auto limit = [](features::SearchRange& r, double s) {
+        if (s > 0.0) r.hi = std::min(r.hi, 0.5 * s);
+        else r.lo = std::max(r.lo, 0.5 * s);
+      };
+      limit(f.range, s_g);
+      limit(g.range, s_f);
+      if (std::abs(s_g) < 2.0 * p_.split_min_px || std::abs(s_f) < 2.0 * p_.split_min_px) {
+        scene::LineFeature& keep = f.visible && !f.ambiguous ? f : g;
+        scene::LineFeature& other = &keep == &f ? g : f;
+        if (!keep.visible || keep.ambiguous || keep.merged || other.merged) {
+          f.ambiguous = f.ambiguous || f.visible;  // a third edge in the pair: too crowded
+          g.ambiguous = g.ambiguous || g.visible;
+          continue;
+        }
+        // Mid-line: keep's ends moved half way to their closest points on the other's line.
+        const Eigen::Vector3d o1 = other.X1, ou = (other.X2 - other.X1).normalized();
+        const auto mid = [&](const Eigen::Vector3d& X) { return 0.5 * (X + o1 + ou * ou.dot(X - o1)); };
+        keep.X1 = mid(keep.X1);
+        keep.X2 = mid(keep.X2);
+        keep.merged = true;
+        keep.sigma_px = p_.line_sigma_px + 0.5 * std::abs(s_g);
+        keep.range = features::SearchRange{};
+        other.ambiguous = other.ambiguous || other.visible;
+      }
     }
   }
 }
@@ -342,7 +377,7 @@ int VisionCycle::track_features(const model::Model& model, scene::View& view, co
       const bool search = first_pass && (f.status != scene::FeatureStatus::kFound || search_level > 0);
       features::LineTracker& t = search ? searchers_[std::min<std::size_t>(search_level, searchers_.size() - 1)]
                                         : (degrade_level_ >= 1 ? reduced_tracker_ : tracker_);
-      f.measurement = t.track(img.grey, f.predicted, f.track, colour);
+      f.measurement = t.track(img.grey, f.predicted, f.track, colour, f.range);
       if (!first_pass && f.measurement.found) ++refound_;
       last_samples_ += t.params().rows;
       ++report_.windows;
@@ -483,7 +518,7 @@ void VisionCycle::collect_observations(const scene::Object& obj, scene::View& vi
     o.X2_obj = f.X2;
     o.xn1 = f.line_n1;
     o.xn2 = f.line_n2;
-    o.sigma_px = p_.line_sigma_px;
+    o.sigma_px = f.sigma_px > 0.0 ? f.sigma_px : p_.line_sigma_px;
     line_obs_.push_back(o);
     line_obs_feature_.push_back(static_cast<std::uint32_t>(i));
   }
@@ -506,12 +541,12 @@ void VisionCycle::collect_observations(const scene::Object& obj, scene::View& vi
       bool have = false;
       for (std::size_t u = 0; u < J.lines.size(); ++u) {
         const scene::LineFeature& f = view.lines[J.lines[u]];
-        if (!f.visible || f.ambiguous || f.dropped || !f.measurement.found) continue;
+        if (!f.visible || f.ambiguous || f.merged || f.dropped || !f.measurement.found) continue;
         if ((f.X1 - J.p).squaredNorm() > 1e-12 && (f.X2 - J.p).squaredNorm() > 1e-12) continue;  // end hidden
         const Eigen::Vector2d du = (f.line_n2 - f.line_n1).normalized();
         for (std::size_t w = u + 1; w < J.lines.size(); ++w) {
           const scene::LineFeature& g = view.lines[J.lines[w]];
-          if (!g.visible || g.ambiguous || g.dropped || !g.measurement.found) continue;
+          if (!g.visible || g.ambiguous || g.merged || g.dropped || !g.measurement.found) continue;
           if ((g.X1 - J.p).squaredNorm() > 1e-12 && (g.X2 - J.p).squaredNorm() > 1e-12) continue;
           const Eigen::Vector2d dw = (g.line_n2 - g.line_n1).normalized();
           const double sn = std::abs(du.x() * dw.y() - du.y() * dw.x());
@@ -576,6 +611,10 @@ void VisionCycle::process_view(scene::Object& obj, scene::View& view, const scen
   bool updated = false;
   int found = 0;
   const int passes = std::max(1, p_.refine_passes);
+  // The prediction as a prior (see CycleParams::prior_fallback), in this camera's frame.
+  const geometry::SE3 T_view_pred = view.T_cam_obj;
+  const bool can_prior = p_.prior_fallback && obj.covariance_pred.allFinite() && obj.covariance_pred.trace() > 0.0;
+  view.prior_used = false;
   for (int pass = 0; pass < passes; ++pass) {
     const auto ta = now_();
     found = track_features(*obj.model, view, cam, img, pass == 0, rep.search_level);
@@ -586,7 +625,7 @@ void VisionCycle::process_view(scene::Object& obj, scene::View& view, const scen
 
     collect_observations(obj, view, cam);
     const int n_obs = static_cast<int>(line_obs_.size() + point_obs_.size() + circle_obs_.size() / 4);
-    if (n_obs >= p_.min_lines) {
+    if (n_obs >= p_.min_lines || (can_prior && n_obs >= 1)) {
       estimation::ObservationSet obs;
       obs.points = point_obs_;
       obs.lines = line_obs_;
@@ -595,10 +634,36 @@ void VisionCycle::process_view(scene::Object& obj, scene::View& view, const scen
       flags.points = point_inlier_;
       flags.lines = line_inlier_;
       flags.circles = circle_inlier_;
-      result = solver_.solve(view.T_cam_obj, obs, flags);
-      if (result.ok() && result.inliers >= p_.min_lines) {
+      result = estimation::PoseResult{};
+      if (n_obs >= p_.min_lines) result = solver_.solve(view.T_cam_obj, obs, flags);
+      bool with_prior = false;
+      if (can_prior && !(result.ok() && result.inliers >= p_.min_lines)) {
+        // Partial observability: the image fixes some directions, the prediction the others.
+        const geometry::Matrix6d Ad = adjoint(cam.T_ref_cam.inverse());
+        geometry::Matrix6d cov = Ad * obj.covariance_pred * Ad.transpose();
+        cov.diagonal().array() += 1e-12;
+        prior_.T_cam_obj = T_view_pred;
+        prior_.information = cov.inverse();
+        obs.prior = &prior_;
+        std::fill(line_inlier_.begin(), line_inlier_.end(), 1);
+        std::fill(point_inlier_.begin(), point_inlier_.end(), 1);
+        std::fill(circle_inlier_.begin(), circle_inlier_.end(), 1);
+        result = solver_.solve(T_view_pred, obs, flags);
+        with_prior = result.ok();
+      }
+      if (result.ok() && (with_prior || result.inliers >= p_.min_lines)) {
         view.T_cam_obj = result.T_cam_obj;
         updated = true;
+        view.prior_used = with_prior;
+        // Information of the observations alone: the solve's, less the prior's (both scaled by
+        // the solve's sigma0^2), kept positive semi-definite.
+        const double s0 = std::max(result.sigma0, p_.solver.min_sigma0);
+        geometry::Matrix6d info = result.covariance.inverse();
+        if (with_prior) info -= prior_.information / (s0 * s0);
+        info = 0.5 * (info + info.transpose()).eval();
+        const Eigen::SelfAdjointEigenSolver<geometry::Matrix6d> es(info);
+        geometry::Vector6d ev = es.eigenvalues().cwiseMax(1e-9 * std::max(es.eigenvalues().maxCoeff(), 1e-30));
+        view.information = es.eigenvectors() * ev.asDiagonal() * es.eigenvectors().transpose();
       }
       for (std::size_t k = 0; k < line_obs_feature_.size(); ++k)
         if (!line_inlier_[k]) view.lines[line_obs_feature_[k]].retrack = true;
@@ -672,6 +737,7 @@ void VisionCycle::fuse_and_filter(scene::Scene& scene, scene::Object& obj, Objec
   // Fuse the view poses into the object pose: information-weighted mean in the tangent space of
   // the first good view (one view: its pose, moved into the reference frame).
   geometry::SE3 T0_ref;
+  bool prior_used = false;
   geometry::Matrix6d info_sum = geometry::Matrix6d::Zero();
   geometry::Vector6d info_xi = geometry::Vector6d::Zero();
   int good = 0;
@@ -679,10 +745,12 @@ void VisionCycle::fuse_and_filter(scene::Scene& scene, scene::Object& obj, Objec
     if (!view.pose.ok()) continue;
     const scene::Camera& cam = scene.cameras()[view.camera];
     const geometry::SE3 T_ref = cam.T_ref_cam * view.T_cam_obj;
-    const geometry::Matrix6d Ad = adjoint(cam.T_ref_cam);
-    const geometry::Matrix6d cov = Ad * view.pose.covariance * Ad.transpose();
+    // Information in the reference frame: Ad(T_cam_ref)^T I Ad(T_cam_ref) (covariances map with
+    // Ad(T_ref_cam)).
+    const geometry::Matrix6d Ad_inv = adjoint(cam.T_ref_cam.inverse());
     if (good == 0) T0_ref = T_ref;
-    const geometry::Matrix6d info = (cov + 1e-18 * geometry::Matrix6d::Identity()).inverse();
+    const geometry::Matrix6d info = Ad_inv.transpose() * view.information * Ad_inv;
+    prior_used = prior_used || view.prior_used;
     info_sum += info;
     info_xi += info * (T_ref * T0_ref.inverse()).log();
     ++good;
@@ -720,9 +788,12 @@ void VisionCycle::fuse_and_filter(scene::Scene& scene, scene::Object& obj, Objec
   }
   if (accept) {
     obj.T_ref_obj = T_meas;
-    obj.covariance = cov_meas;
+    // Directions held by the prediction carry the filter's covariance, not the (huge) one of
+    // the observations alone.
+    obj.covariance = prior_used && p_.use_filter ? obj.filter.pose_covariance() : cov_meas;
     obj.quality = quality;
-    obj.status = ratio >= p_.degraded_ratio ? scene::TrackStatus::kTracking : scene::TrackStatus::kDegraded;
+    obj.status = ratio >= p_.degraded_ratio && !prior_used ? scene::TrackStatus::kTracking : scene::TrackStatus::kDegraded;
+    rep.prior_used = prior_used;
   } else {
     // No usable measurement: hold the prediction (the filter's, which does not run away: its
     // velocity is dropped after a few bad frames) and search wider next time.
@@ -763,7 +834,15 @@ const CycleReport& VisionCycle::process(scene::Scene& scene, std::span<const Cam
     if (obj.status == scene::TrackStatus::kUninitialised) continue;
     rep.search_level = std::min(obj.bad_frames, p_.recovery.max_search_level);
     const double dt = obj.last_stamp >= 0.0 ? std::max(0.0, stamp_s - obj.last_stamp) : 0.0;
-    obj.T_pred = p_.use_filter && obj.filter.initialised() && obj.bad_frames == 0 ? obj.filter.predict_pose(dt) : obj.T_ref_obj;
+    obj.T_pred = p_.use_filter && obj.filter.initialised() && obj.status != scene::TrackStatus::kLost
+                     ? obj.filter.predict_pose(dt)
+                     : obj.T_ref_obj;
+    obj.covariance_pred.setZero();
+    if (p_.use_filter && obj.filter.initialised()) {
+      filter::PoseFilter ahead = obj.filter;  // (fixed-size state: no allocation)
+      ahead.predict(dt);
+      obj.covariance_pred = ahead.pose_covariance();
+    }
     for (scene::View& view : obj.views) {
       if (view.camera >= images.size() || images[view.camera].grey.empty()) continue;
       predict_view(obj, view, scene.cameras()[view.camera]);

@@ -59,6 +59,17 @@ struct CircleObservation {
   double sigma_px = 1.0;                                   ///< a-priori image noise of the edge point, pixels
 };
 
+/// \brief A prior on the pose (e.g. a filter's prediction): the pose is taken to be
+/// exp(n) * T_cam_obj, n ~ N(0, information^-1), n the left tangent (v, w) in metres and radians.
+/// In a solve it adds the 6 residuals U log(T * T_cam_obj^-1) (U^T U = information), so that the
+/// directions the observations do not fix (three parallel edges, one circle, one face seen
+/// frontally) keep the prior's value instead of making the solve degenerate. It is never an
+/// outlier and counts as no observation.
+struct PosePrior {
+  geometry::SE3 T_cam_obj;
+  geometry::Matrix6d information = geometry::Matrix6d::Zero();  ///< m^-2, rad^-2 (symmetric positive definite)
+};
+
 /// \brief All observations of one solve, by type (any span may be empty).
 struct ObservationSet {
   std::span<const PointObservation> points;
@@ -66,6 +77,8 @@ struct ObservationSet {
   std::span<const CircleObservation> circles;
   std::span<const Point3Observation> points3d;
   std::span<const NormalObservation> normals;
+  /// Optional prior on the pose; with it a solve needs only one valid observation.
+  const PosePrior* prior = nullptr;
 };
 
 /// \brief Optional per-observation inlier outputs of a solve, one span per type of
@@ -217,6 +230,7 @@ class PoseSolver {
   double stat(std::size_t slot, double scale) const;
   double quantile_scale();
   int count_active() const;
+  int min_active() const;  ///< fewest active observations a solve needs (1 with a prior)
 
   PoseSolverParams p_;
   // Per observation "slot": points, then lines, circles, 3-D points, normals.
@@ -235,6 +249,9 @@ class PoseSolver {
   std::vector<Eigen::Vector3d> circle_axes_;      ///< unit circle axes, object frame
   std::vector<DirectionBasis> normal_bases_;      ///< around the measured normals, camera frame
   std::vector<Eigen::Vector3d> normal_objs_;      ///< unit model normals, object frame
+  bool has_prior_ = false;                        ///< the current solve has a valid prior
+  geometry::SE3 prior_T_;                         ///< its pose
+  geometry::Matrix6d prior_U_ = geometry::Matrix6d::Zero();  ///< upper Cholesky factor of its information
 };
 
 }  // namespace v4r::estimation

@@ -17,7 +17,16 @@ struct LineTrackerParams {
   int rows = 16;               ///< samples along the edge (sub-image height); long edges are subsampled
   int half_width = 10;         ///< search range across the edge, pixels each side (sub-image width 2w+1)
   double end_margin = 0.1;     ///< fraction of the segment left out at each end (corners, junctions)
-  float min_gradient = 8.0f;   ///< minimum |Prewitt gradient| (grey levels per pixel) of an edge pixel
+  /// Edge pixels must exceed the larger of two thresholds: this absolute floor (grey levels per
+  /// pixel of the Prewitt gradient) and gradient_noise_factor times the window's mean |gradient|,
+  /// which follows the image: its noise, the texture of the faces and the contrast of the edges
+  /// in the window (an edge of contrast C adds about C / (2w+1) to the mean, its peak is C / 2).
+  float min_gradient = 3.0f;
+  float gradient_noise_factor = 3.5f;
+  /// Colour images: a window whose grey gradient shows no edge is searched again on the colour
+  /// gradient (the three channels' gradients projected on their principal direction in the
+  /// window), so that an edge between surfaces of equal brightness and different colour is found.
+  bool use_colour_gradient = true;
   int max_candidates_per_row = 3;  ///< strongest local maxima kept per row
   int ransac_iterations = 40;  ///< RANSAC hypotheses
   double inlier_tolerance = 1.0;  ///< pixels: distance of an edge pixel from the line to count as inlier
@@ -82,6 +91,8 @@ struct LineMeasurement {
   /// background edge when the object edge is occluded.
   bool cue_fallback = false;
   int cue_rejected = 0;       ///< candidate edge pixels discarded by the appearance check
+  bool colour_gradient = false;  ///< found on the colour gradient (the grey one showed no edge)
+  float threshold = 0.0f;     ///< gradient threshold the edge pixels had to pass (grey levels per pixel)
 };
 
 /// \brief Per-feature state the tracker keeps between frames (the window follows the feature).
@@ -92,6 +103,15 @@ struct LineTrackState {
   /// (n = (-d.y, d.x)). The caller marks is_object (both for an edge between two visible faces);
   /// the tracker learns mean / var.
   SideAppearance side[2];
+  /// Colour-gradient search: the principal colour direction (B, G, R; unit) of the last edge found
+  /// on the colour gradient, which fixes the sign of the projected gradient, and that edge's polarity.
+  float colour_axis[3]{};
+  int colour_polarity = 0;
+};
+
+/// \brief Offsets across a tracking window (pixels) where an edge may be found.
+struct SearchRange {
+  double lo = -1e9, hi = 1e9;
 };
 
 /// \brief Finds a straight edge near a predicted segment.
@@ -118,9 +138,11 @@ class LineTracker {
   /// sides are relearned from scratch if inlier_ratio >= learn_min_inlier_ratio; a caller that
   /// then rejects the measurement (e.g. as a pose outlier) may clear side[k].learned. Never
   /// throws; a window that leaves the image is sampled clamped and its rows outside the image are
-  /// ignored.
+  /// ignored. `range` limits where the edge is searched across the window: offsets (pixels,
+  /// along the normal (-d.y, d.x) of the direction d = b - a) from range.lo to range.hi, within
+  /// the window's half width; a window split from a neighbouring parallel edge uses it.
   LineMeasurement track(const image::ImageView& grey, const Segment2& predicted, LineTrackState& state,
-                        const image::ColourView* colour = nullptr);
+                        const image::ColourView* colour = nullptr, SearchRange range = {});
 
   [[nodiscard]] const LineTrackerParams& params() const { return p_; }
   /// Edge pixels of the last call (pixels), for overlays: inliers of the fit.
@@ -148,6 +170,12 @@ class LineTracker {
   // Step 3: edgels of every valid row from grad_; with `cues`, candidates failing the appearance
   // check are discarded. Fills edgels_, row_count_, pool_, pool_cum_; returns the pool size.
   int extract_edgels(int want, bool cues, int* rejected);
+  // Replaces grad_ by the colour gradient of the valid rows, projected on its principal direction
+  // in the window (sign from state.colour_axis); sets thr_. False when it has no direction.
+  bool colour_gradient(const LineTrackState& state, float axis[3]);
+  // Edgels, RANSAC and measurement with the appearance check when `cues` (and without it when
+  // that finds nothing): steps 3-5 on the current grad_.
+  void detect(int want, bool cues, int valid_rows, LineMeasurement& m);
   // Steps 4-5: RANSAC and refinement over the pool; fills m (found, line, ...) and last_inliers_;
   // leaves the final inliers in inlier_idx_[0 .. m.inliers).
   void fit_pool(int pool_size, int valid_rows, LineMeasurement& m);
@@ -169,6 +197,8 @@ class LineTracker {
   std::vector<unsigned char> col_inside_;  // 2w+1: the current row's samples all inside the image
   std::vector<int> sample_off_;      // 3 x (2w+1): byte offset of each sample's top-left pixel
   std::vector<float> sample_ax_, sample_ay_, sample_val_;  // 3 x (2w+1): its weights and value
+  std::vector<float> colour_row_;  // 3 x (2w+1): one row's smoothed B, G, R samples (colour gradient)
+  std::vector<float> colour_grad_;  // rows x (2w+1) x 3: gradient across, per channel
   std::vector<double> row_v_;    // rows: position of each row along the axis (pixels)
   std::vector<Eigen::Vector2d> row_centre_;  // rows: window centre point of each row (pixels)
   std::vector<Edgel> edgels_;    // rows x max_candidates_per_row, row-major slots
@@ -180,6 +210,8 @@ class LineTracker {
   std::uint32_t rng_ = 1;
   // Context of the current track() call (set at its start; no ownership).
   image::ImageView img_;
+  int col_lo_ = 0, col_hi_ = 0;  // columns where edgels may be taken (from the SearchRange)
+  float thr_ = 0.0f;             // gradient threshold of the current grad_ (see min_gradient)
   const image::ColourView* colour_ = nullptr;
   Eigen::Vector2d d_ = Eigen::Vector2d::Zero(), n_ = Eigen::Vector2d::Zero();  // window axis, normal
   SideCheck check_[2];

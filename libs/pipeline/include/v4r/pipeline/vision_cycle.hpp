@@ -63,11 +63,19 @@ struct CycleParams {
   /// within this distance of it (the two edges touch).
   double tangent_junction_tol_px = 1.5;
   double tangent_junction_sigma_scale = 6.0;  ///< its sigma = line sigma * this (weak along the line)
-  int min_lines = 4;                    ///< fewer observations than this: the view pose is not updated
+  int min_lines = 4;                    ///< fewer observations than this: the view pose is not updated without a prior
+  /// When the features do not fix the pose (fewer than min_lines, or a degenerate set: parallel
+  /// edges, one circle), solve with the filter's prediction as a prior: the observed directions
+  /// come from the image, the others from the prediction, and the object is `degraded`.
+  bool prior_fallback = true;
   double degraded_ratio = 0.5;          ///< used / visible below this: status degraded
   int refine_passes = 2;                ///< track + solve passes per frame (later ones re-measure missed features from the new pose)
   double ambiguity_angle = 0.2;         ///< radians: edges closer than this in image direction count as parallel
-  double ambiguity_margin_px = 2.0;     ///< parallel edges closer than track.half_width + this are ambiguous
+  double ambiguity_margin_px = 2.0;     ///< parallel edges closer than track.half_width + this are side by side
+  /// Side-by-side edges (a thin wall seen obliquely) are tracked in windows split half way between
+  /// them when each keeps at least this many pixels towards the other; closer ones are ambiguous
+  /// and left out. A value above track.half_width leaves every side-by-side pair out.
+  double split_min_px = 3.0;
   double ambiguity_min_overlap = 0.2;   ///< ... if they overlap by this fraction of the shorter one
   BudgetParams budget;
   RecoveryParams recovery;
@@ -90,6 +98,7 @@ struct ObjectReport {
   int iterations = 0;
   int search_level = 0;    ///< 0: normal windows; > 0 searching wider after a bad frame
   bool measurement_rejected = false;  ///< the solve was refused by the filter gate
+  bool prior_used = false;  ///< some directions were held by the prediction (partial observability)
 };
 
 /// \brief Per-cycle report: per-stage times, budget state and one ObjectReport per object.
@@ -158,6 +167,7 @@ class VisionCycle {
   std::vector<features::LineTracker> searchers_;  // per search level
   features::EllipseTracker ellipse_tracker_, ellipse_searcher_, reduced_ellipse_tracker_;
   estimation::PoseSolver solver_;
+  estimation::PosePrior prior_;  // the prediction, when a view needs it
   VisibilityTester visibility_;
   std::vector<EdgeVisibility> edge_vis_;
   std::vector<estimation::LineObservation> line_obs_;

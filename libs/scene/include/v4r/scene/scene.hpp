@@ -41,8 +41,13 @@ struct LineFeature {
   model::Index edge = model::kNone;  ///< index into Model::lines()
   FeatureStatus status = FeatureStatus::kNotFound;
   bool visible = false;               ///< visible in the current prediction
-  bool ambiguous = false;             ///< visible, but side by side with another edge: not tracked
+  bool ambiguous = false;             ///< visible, but side by side with another edge too close to split: not tracked
+  features::SearchRange range;        ///< where its window may find it (split from a side-by-side edge)
   bool grazing = false;               ///< hidden, but bounds a face seen at a grazing angle (may show as a sliver)
+  /// Tracked for itself and a side-by-side edge too close to tell apart (a thin plate's two
+  /// edges, a face seen edge-on): X1, X2 are then the pair's mid-line and sigma_px is widened.
+  bool merged = false;
+  double sigma_px = 0.0;              ///< a-priori noise of its line observation (0: the cycle's default)
   Eigen::Vector3d X1 = Eigen::Vector3d::Zero(), X2 = Eigen::Vector3d::Zero();  ///< visible part, object frame
   features::Segment2 predicted;       ///< projection of the visible part (pixels)
   features::LineTrackState track;     ///< state the tracker carries between frames
@@ -79,6 +84,11 @@ struct View {
   std::vector<ArcFeature> arcs;    ///< one per model circle arc
   std::vector<std::uint8_t> face_visible;  ///< per model face, with hysteresis
   estimation::PoseResult pose;    ///< last pose solve of this view
+  /// The last solve needed the prediction as a prior (the features did not fix every direction).
+  bool prior_used = false;
+  /// Information of the last solve's observations alone (camera frame, left tangent; m^-2,
+  /// rad^-2), without the prior: nearly singular in the directions the features do not fix.
+  geometry::Matrix6d information = geometry::Matrix6d::Zero();
 };
 
 /// Tracking state of an object.
@@ -98,6 +108,7 @@ struct Object {
   filter::PoseFilter filter;          ///< smooths T_ref_obj and predicts it (constant velocity)
   geometry::SE3 T_ref_obj_filtered;   ///< filter output after the last cycle
   geometry::SE3 T_pred;               ///< prediction for the current cycle
+  geometry::Matrix6d covariance_pred = geometry::Matrix6d::Zero();  ///< of T_pred (left tangent, reference frame); zero: none
   geometry::Vector6d velocity = geometry::Vector6d::Zero();  ///< (v, w) m/s, rad/s, left tangent of T_ref_obj
   double last_stamp = -1.0;           ///< seconds: time of the last cycle of this object
   int bad_frames = 0;                 ///< consecutive degraded or lost frames
