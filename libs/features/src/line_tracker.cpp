@@ -22,6 +22,32 @@ constexpr double kInsideMargin = 0.01;     // pixels: keeps x0 + 1, y0 + 1 of a 
 constexpr float kMinChromaSum = 30.0f;     // grey levels: mean R + G + B below which rg chromaticity is noise
 constexpr float kMaxDarkScale = 4.0f;      // largest widening of the chroma tolerance on a darkened band
 
+/// Median of |gradient| over a window, from a histogram of 0.5 grey/px bins (the last bin holds
+/// everything above): the noise and texture level of the window, which the few columns of an
+/// edge (however strong or blurred) do not move.
+class GradientHistogram {
+ public:
+  void add(float g) {
+    const int b = static_cast<int>(std::abs(g) * kPerUnit);
+    ++bins_[b < kBins - 1 ? (b >= 0 ? b : kBins - 1) : kBins - 1];  // (NaN: last bin)
+    ++count_;
+  }
+  [[nodiscard]] float median() const {
+    long seen = 0;
+    for (int b = 0; b < kBins; ++b) {
+      seen += bins_[b];
+      if (2 * seen >= count_) return (static_cast<float>(b) + 0.5f) / kPerUnit;
+    }
+    return 0.0f;
+  }
+
+ private:
+  static constexpr int kBins = 128;
+  static constexpr float kPerUnit = 2.0f;  // bins per grey level per pixel
+  int bins_[kBins] = {};
+  long count_ = 0;
+};
+
 bool finite(const Eigen::Vector2d& p) { return std::isfinite(p.x()) && std::isfinite(p.y()); }
 
 /// Bilinear sample without clamping (the arithmetic of ImageView::sample, in single precision:
@@ -484,8 +510,7 @@ LineMeasurement LineTracker::track(const image::ImageView& img, const Segment2& 
   const Eigen::Vector2d start = predicted.a + margin * d;
   const int want = state.polarity > 0 ? 1 : (state.polarity < 0 ? -1 : 0);
   int valid_rows = 0;
-  double abs_sum = 0.0;  // sum of |gradient| over the valid rows' inside columns (threshold)
-  long abs_count = 0;
+  GradientHistogram hist;  // |gradient| over the valid rows' inside columns (threshold)
   for (int i = 0; i < rows; ++i) {
     const Eigen::Vector2d c = start + (i * step) * d;
     row_centre_[i] = c;
@@ -558,20 +583,13 @@ LineMeasurement LineTracker::track(const image::ImageView& img, const Segment2& 
     float* g = &grad_[static_cast<std::size_t>(i) * cols];
     g[0] = 0.0f;
     g[cols - 1] = 0.0f;
-    float row_abs = 0.0f;
-    int row_count = 0;
     for (int j = 1; j < cols - 1; ++j) {
       g[j] = 0.5f * (prow[j + 1] - prow[j - 1]);
-      const bool in = inside[j - 1] && inside[j + 1];
-      row_abs += in ? std::abs(g[j]) : 0.0f;
-      row_count += in ? 1 : 0;
+      if (inside[j - 1] && inside[j + 1]) hist.add(g[j]);
     }
-    abs_sum += row_abs;
-    abs_count += row_count;
   }
   if (valid_rows < kMinInliers) return m;
-  thr_ = std::max(p_.min_gradient,
-                  p_.gradient_noise_factor * static_cast<float>(abs_sum / static_cast<double>(std::max(abs_count, 1L))));
+  thr_ = std::max(p_.min_gradient, p_.gradient_noise_factor * hist.median());
 
   // Appearance checks of the learned object sides (paper 4.1).
   bool cues = false;
@@ -697,20 +715,18 @@ bool LineTracker::colour_gradient(const LineTrackState& state, float axis[3]) {
   const Eigen::Vector3f ref(state.colour_axis[0], state.colour_axis[1], state.colour_axis[2]);
   const float s = ref.squaredNorm() > 0.5f ? e.dot(ref) : e.sum();
   if (s < 0.0f) e = -e;
-  double abs_sum = 0.0;
-  long abs_count = 0;
+  GradientHistogram hist;
   for (int i = 0; i < rows; ++i) {
     float* g = &grad_[static_cast<std::size_t>(i) * cols];
     if (!row_valid_[i]) continue;
     const float* cg = &colour_grad_[static_cast<std::size_t>(i) * cols * 3];
+    const unsigned char* inside = &col_inside_[static_cast<std::size_t>(i) * cols];
     for (int j = 0; j < cols; ++j) {
       g[j] = e[0] * cg[3 * j] + e[1] * cg[3 * j + 1] + e[2] * cg[3 * j + 2];
-      abs_sum += std::abs(g[j]);
-      abs_count += g[j] != 0.0f ? 1 : 0;
+      if (j > 0 && j < cols - 1 && inside[j - 1] && inside[j + 1]) hist.add(g[j]);
     }
   }
-  thr_ = std::max(p_.min_gradient,
-                  p_.gradient_noise_factor * static_cast<float>(abs_sum / static_cast<double>(std::max(abs_count, 1L))));
+  thr_ = std::max(p_.min_gradient, p_.gradient_noise_factor * hist.median());
   for (int c = 0; c < 3; ++c) axis[c] = e[c];
   return true;
 }

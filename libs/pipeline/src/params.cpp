@@ -12,7 +12,7 @@ ParamRegistry make_registry(CycleParams& p) {
   r.add("track.end_margin", &t.end_margin, 0.0, 0.45, "", "fraction of an edge left out at each end");
   r.add("track.min_gradient", &t.min_gradient, 0.0, 255.0, "grey/px", "absolute floor of an edge pixel's gradient");
   r.add("track.gradient_noise_factor", &t.gradient_noise_factor, 0.0, 20.0, "",
-        "edge pixels exceed this times the window's mean |gradient| (threshold follows noise, texture, contrast)");
+        "edge pixels exceed this times the window's median |gradient| (threshold follows noise and texture)");
   r.add("track.use_colour_gradient", &t.use_colour_gradient,
         "colour input: search a window again on the colour gradient when the grey one shows no edge");
   r.add("track.max_candidates_per_row", &t.max_candidates_per_row, 1, 16, "", "edge pixel candidates kept per row");
