@@ -68,6 +68,7 @@ struct CycleParams {
   /// edges, one circle), solve with the filter's prediction as a prior: the observed directions
   /// come from the image, the others from the prediction, and the object is `degraded`.
   bool prior_fallback = true;
+  double prior_max_rms_px = 3.0;  ///< a solve without prior whose RMS residual exceeds this is redone with it
   double degraded_ratio = 0.5;          ///< used / visible below this: status degraded
   int refine_passes = 2;                ///< track + solve passes per frame (later ones re-measure missed features from the new pose)
   double ambiguity_angle = 0.2;         ///< radians: edges closer than this in image direction count as parallel
