@@ -74,6 +74,8 @@ LineTrackerParams sanitize(LineTrackerParams p) {
   if (!(p.end_margin >= 0.0)) p.end_margin = def.end_margin;
   p.end_margin = std::min(p.end_margin, 0.45);
   if (!(p.min_gradient >= 0.0f)) p.min_gradient = def.min_gradient;
+  if (!(p.min_relative_strength >= 0.0f) || !std::isfinite(p.min_relative_strength))
+    p.min_relative_strength = def.min_relative_strength;
   if (!(p.gradient_noise_factor >= 0.0f) || !std::isfinite(p.gradient_noise_factor))
     p.gradient_noise_factor = def.gradient_noise_factor;
   if (!(p.inlier_tolerance > 0.0)) p.inlier_tolerance = def.inlier_tolerance;
@@ -453,7 +455,15 @@ void LineTracker::fit_pool(int pool_size, int valid_rows, LineMeasurement& m) {
   int count = score_line(best_line, best_sign, nullptr);
   LineFit fit;
   if (!fit_inliers(count, &fit)) return;
-  count = score_line(fit, best_sign, nullptr);
+  float strength = 0.0f;
+  count = score_line(fit, best_sign, &strength);
+  // Inliers much weaker than the line's mean strength are noise that happens to lie on it (a
+  // row where the edge is occluded): left out.
+  const float min_strength = p_.min_relative_strength * strength / static_cast<float>(std::max(count, 1));
+  int kept = 0;
+  for (int k = 0; k < count; ++k)
+    if (edgels_[inlier_idx_[k]].strength >= min_strength) inlier_idx_[kept++] = inlier_idx_[k];
+  count = kept;
   LineFit final_fit;
   if (!fit_inliers(count, &final_fit)) return;
 

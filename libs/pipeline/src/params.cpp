@@ -13,6 +13,8 @@ ParamRegistry make_registry(CycleParams& p) {
   r.add("track.min_gradient", &t.min_gradient, 0.0, 255.0, "grey/px", "absolute floor of an edge pixel's gradient");
   r.add("track.gradient_noise_factor", &t.gradient_noise_factor, 0.0, 20.0, "",
         "edge pixels exceed this times the window's median |gradient| (threshold follows noise and texture)");
+  r.add("track.min_relative_strength", &t.min_relative_strength, 0.0, 1.0, "",
+        "inliers weaker than this fraction of the line's mean strength are left out of the fit");
   r.add("track.use_colour_gradient", &t.use_colour_gradient,
         "colour input: search a window again on the colour gradient when the grey one shows no edge");
   r.add("track.max_candidates_per_row", &t.max_candidates_per_row, 1, 16, "", "edge pixel candidates kept per row");

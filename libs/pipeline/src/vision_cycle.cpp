@@ -634,11 +634,11 @@ void VisionCycle::process_view(scene::Object& obj, scene::View& view, const scen
       flags.points = point_inlier_;
       flags.lines = line_inlier_;
       flags.circles = circle_inlier_;
+      // A solve whose residuals are far above the a-priori noise holds a wrong feature that its
+      // few observations cannot single out; the prior's redundancy can.
       result = estimation::PoseResult{};
       if (n_obs >= p_.min_lines) result = solver_.solve(view.T_cam_obj, obs, flags);
       bool with_prior = false;
-      // (A solve whose residuals are far above the a-priori noise holds a wrong feature that its
-      // few observations cannot single out; the prior's redundancy can.)
       if (can_prior && !(result.ok() && result.inliers >= p_.min_lines && result.rms_px <= p_.prior_max_rms_px)) {
         // Partial observability: the image fixes some directions, the prediction the others.
         const geometry::Matrix6d Ad = adjoint(cam.T_ref_cam.inverse());

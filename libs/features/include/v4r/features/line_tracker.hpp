@@ -23,6 +23,9 @@ struct LineTrackerParams {
   /// columns of the edges themselves (pure noise of deviation s: median 0.67 s, threshold 2.7 s; two strong edges in the window raise it to about 4 s).
   float min_gradient = 3.0f;
   float gradient_noise_factor = 4.0f;
+  /// Inliers weaker than this fraction of the fitted line's mean edge strength are left out of
+  /// the final fit (noise on the line where the edge itself is occluded).
+  float min_relative_strength = 0.3f;
   /// Colour images: a window whose grey gradient shows no edge is searched again on the colour
   /// gradient (the three channels' gradients projected on their principal direction in the
   /// window), so that an edge between surfaces of equal brightness and different colour is found.
