@@ -6,7 +6,7 @@
     /usr/bin/python3 bench/compare_visp.py --shared-bench /work/shared/bench --data /tmp/v4r-bench
 
 What it does (run from anywhere; paths default relative to this repository):
-1. generates the benchmark into --data (default /tmp/v4r-bench) if any of its 24 sequences is
+1. generates the benchmark into --data (default /tmp/v4r-bench) if any selected sequence is
    missing: `make_sequences.py --out DATA --jobs 2` of --shared-bench (default ../shared/bench next
    to the repository);
 2. compiles bench/visp/visp_track.cpp with `g++ -O2 $(pkg-config --cflags --libs visp)` into
@@ -57,8 +57,8 @@ def is_sequence(d):
                                                               'gt_poses.csv'))
 
 
-def ensure_benchmark(args):
-    missing = [s for s in SEQUENCES if not is_sequence(os.path.join(args.data, s))]
+def ensure_benchmark(args, names):
+    missing = [s for s in names if not is_sequence(os.path.join(args.data, s))]
     if not missing:
         return
     gen = os.path.join(args.shared_bench, 'make_sequences.py')
@@ -198,9 +198,9 @@ def main():
 
     if not os.path.exists(args.v4r):
         sys.exit('compare_visp: no v4r binary at %s (build first, or --v4r)' % args.v4r)
-    ensure_benchmark(args)
-    exe = None if args.no_visp else ensure_visp_binary(args)
     names = [s for s in SEQUENCES if not args.only or any(o in s for o in args.only)]
+    ensure_benchmark(args, names)
+    exe = None if args.no_visp else ensure_visp_binary(args)
     if not args.no_cube and (not args.only or any(o in CUBE for o in args.only)) and prepare_cube(args):
         names.append(CUBE)
     if not names:
