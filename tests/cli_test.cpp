@@ -193,3 +193,29 @@ TEST_F(Cli, ConfigErrorsNameFileLineAndKey) {
   EXPECT_EQ(s.code, 1);
   EXPECT_NE(s.err.find("out of range"), std::string::npos) << s.err;
 }
+
+TEST_F(Cli, InspectModelWarnsAboutASlightlyWarpedFaceAndRefusesABadlyWarpedOne) {
+  // An 8 cm box whose top face has one corner 1 mm high (0.25 mm off the face's least-squares
+  // plane, 0.22 % of its diameter): loads with a warning naming file:line; lifted 6 cm (12.5 %)
+  // it is refused, unless the bound is raised.
+  auto box = [](double lift) {
+    return "V1\n8\n0 0 0\n0.08 0 0\n0.08 0.08 0\n0 0.08 0\n0 0 0.08\n0.08 0 0.08\n0.08 0.08 " +
+           std::to_string(0.08 + lift) +
+           "\n0 0.08 0.08\n0\n0\n6\n4 0 3 2 1\n4 4 5 6 7\n4 0 1 5 4\n4 1 2 6 5\n4 2 3 7 6\n4 3 0 4 7\n";
+  };
+  // 8 points on lines 3-10, the face records on lines 14-19; the top face (4 5 6 7) is line 15.
+  const fs::path ok = dir_ / "warped_ok.cao";
+  std::ofstream(ok) << box(0.001);
+  CliRun r = run("inspect-model " + ok.string());
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("warning: " + ok.string() + ":15:1: face 1 is not planar"), std::string::npos) << r.err;
+  EXPECT_NE(r.out.find("6 faces"), std::string::npos) << r.out;
+
+  const fs::path bad = dir_ / "warped_bad.cao";
+  std::ofstream(bad) << box(0.06);
+  r = run("inspect-model " + bad.string());
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find(bad.string() + ":15:"), std::string::npos) << r.err;
+  r = run("inspect-model --max-off-plane 0.3 " + bad.string());
+  EXPECT_EQ(r.code, 0) << r.err;
+}

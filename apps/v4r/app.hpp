@@ -9,6 +9,7 @@
 #include "v4r/core/expected.hpp"
 #include "v4r/geometry/camera.hpp"
 #include "v4r/geometry/se3.hpp"
+#include "v4r/model/cao_reader.hpp"
 #include "v4r/model/model.hpp"
 #include "v4r/pipeline/tracker.hpp"
 
@@ -35,8 +36,11 @@ struct TrackSummary {
   std::vector<int> features_visible, features_found, junctions_used;  ///< per frame (v4r bench)
 };
 
-/// Loads a model by extension (.cao today; meshes join later). Errors name the file.
-Expected<std::shared_ptr<const model::Model>> load_model(const std::string& path, double mesh_scale = 1.0);
+/// Loads a model by extension (.cao or a mesh). Errors name the file; accepted imperfections of a
+/// .cao (faces slightly off their plane) go to `warnings` if given, else to the log.
+Expected<std::shared_ptr<const model::Model>> load_model(const std::string& path, double mesh_scale = 1.0,
+                                                         const model::CaoReadOptions& cao = {},
+                                                         std::vector<Error>* warnings = nullptr);
 
 /// Runs `v4r track`: loads inputs, tracks every frame, writes the CSV and the overlay.
 Expected<TrackSummary> run_track(const TrackOptions& opt);

@@ -270,6 +270,12 @@ int main(int argc, char** argv) {
     std::string inspect_path;
     auto* inspect = app.add_subcommand("inspect-model", "Load a model and print its features");
     inspect->add_option("model", inspect_path, "Model file")->required();
+    model::CaoReadOptions cao_options;
+    inspect->add_option("--max-off-plane", cao_options.max_off_plane,
+                        "Refuse .cao faces whose points are farther than this fraction of the face's diameter from "
+                        "its least-squares plane (smaller offsets above 0.1 % are accepted with a warning)")
+        ->check(CLI::Range(0.0, 1.0))
+        ->capture_default_str();
 
     CLI11_PARSE(app, argc, argv);
     ra.noise_given = noise_opt->count() > 0;
@@ -303,7 +309,9 @@ int main(int argc, char** argv) {
     if (*demo) return cmd_demo(demo_out);
     if (*bench) return cmd_bench(ba, repeat, bench_budget);
     if (*inspect) {
-      auto m = app::load_model(inspect_path);
+      std::vector<Error> warnings;
+      auto m = app::load_model(inspect_path, 1.0, cao_options, &warnings);
+      for (const Error& w : warnings) fmt::print(stderr, "v4r inspect-model: warning: {}\n", w.to_string());
       if (!m) {
         fmt::print(stderr, "v4r inspect-model: error: {}\n", m.error().to_string());
         return 1;

@@ -21,13 +21,14 @@ namespace v4r::app {
 
 namespace fs = std::filesystem;
 
-Expected<std::shared_ptr<const model::Model>> load_model(const std::string& path, double mesh_scale) {
+Expected<std::shared_ptr<const model::Model>> load_model(const std::string& path, double mesh_scale,
+                                                         const model::CaoReadOptions& cao, std::vector<Error>* warnings) {
   std::string ext = fs::path(path).extension().string();
   for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   if (!fs::exists(path)) return make_error(path, 0, 0, "model file not found");
   Expected<model::Model> m = make_error("");
   if (ext == ".cao") {
-    m = model::load_cao(path);
+    m = model::load_cao(path, cao, warnings);
   } else if (ext == ".obj" || ext == ".ply" || ext == ".stl" || ext == ".off" || ext == ".dae" || ext == ".fbx" ||
              ext == ".3ds" || ext == ".gltf" || ext == ".glb") {
     model::MeshImportOptions mo;

@@ -20,15 +20,18 @@
 #include <utility>
 #include <vector>
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <fmt/format.h>
+
+#include "v4r/core/log.hpp"
 
 namespace v4r::model {
 namespace {
 
 namespace fs = std::filesystem;
 
-constexpr double kPlanarityTolAbs = 1e-4;   ///< metres: a face point may lie this far off its plane
+constexpr double kPlanarityTolAbs = 1e-4;   ///< metres: a face point may lie this far off its plane silently
 constexpr double kPlanarityTolRel = 1e-3;   ///< ... or this fraction of the face diameter, if larger
 constexpr double kMinLength = 1e-9;         ///< metres: shorter edges, axes and radii are degenerate
 constexpr double kMinSinCollinear = 1e-9;   ///< |sin(angle)| below which circle points are collinear
@@ -185,8 +188,11 @@ SectionInfo info(Section s) {
 class CaoFileParser {
  public:
   CaoFileParser(ModelBuilder& builder, std::string source, std::string_view text, const Eigen::Isometry3d& T_root_file,
-                std::vector<std::string> chain_keys, std::vector<std::string> chain_names)
+                std::vector<std::string> chain_keys, std::vector<std::string> chain_names, const CaoReadOptions& options,
+                std::vector<Error>* warnings)
       : b_(builder),
+        options_(options),
+        warnings_(warnings),
         source_(std::move(source)),
         T_(T_root_file),
         chain_keys_(std::move(chain_keys)),
@@ -442,7 +448,7 @@ class CaoFileParser {
     std::vector<std::string> keys = chain_keys_, names = chain_names_;
     keys.push_back(key);
     names.push_back(name);
-    CaoFileParser child(b_, name, *text, T_ * T_file_child, std::move(keys), std::move(names));
+    CaoFileParser child(b_, name, *text, T_ * T_file_child, std::move(keys), std::move(names), options_, warnings_);
     if (auto r = child.run(); !r) {
       Error e = r.error();
       e.message += fmt::format(" [included from {}:{}]", source_, l.number);
@@ -547,7 +553,10 @@ class CaoFileParser {
 
   /// Adds a face from local point indices; errors point at the record's first token and name
   /// this file's point indices.
-  Expected<void> add_face(const TextLine& l, long long i, const std::vector<std::size_t>& loop, Attributes attr) {
+  /// `point_columns` holds the column of each loop point's index token where the record lists
+  /// points (faces from points), else is empty.
+  Expected<void> add_face(const TextLine& l, long long i, const std::vector<std::size_t>& loop, Attributes attr,
+                          const std::vector<int>& point_columns = {}) {
     const std::size_t n = loop.size();
     double diameter = 0.0;
     Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
@@ -566,19 +575,48 @@ class CaoFileParser {
       normal += (points_[loop[k]] - centroid).cross(points_[loop[(k + 1) % n]] - centroid);
     if (normal.norm() <= 1e-9 * diameter * diameter)
       return error(l, l.tokens[0].column, fmt::format("face {} is degenerate: its points enclose no area", i));
-    normal.normalize();
-    const double tol = std::max(kPlanarityTolAbs, kPlanarityTolRel * diameter);
-    for (std::size_t k : loop) {
-      const double d = std::abs(normal.dot(points_[k] - centroid));
-      if (d > tol)
-        return error(l, l.tokens[0].column,
-                     fmt::format("face {} is not planar: point {} is {:.6g} m off its plane (tolerance {:.3g} m)", i,
-                                 k, d, tol));
+    // Distances from the least-squares plane (the plane ModelBuilder::add_face gives the face).
+    Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+    for (std::size_t k : loop) scatter += (points_[k] - centroid) * (points_[k] - centroid).transpose();
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(scatter);
+    const Eigen::Vector3d plane_n = eig.info() == Eigen::Success ? Eigen::Vector3d(eig.eigenvectors().col(0).normalized())
+                                                                 : Eigen::Vector3d(normal.normalized());
+    std::size_t worst = 0;  // position in the loop of the point farthest from the plane
+    double worst_d = -1.0;
+    for (std::size_t k = 0; k < n; ++k) {
+      const double d = std::abs(plane_n.dot(points_[loop[k]] - centroid));
+      if (d > worst_d) {
+        worst_d = d;
+        worst = k;
+      }
+    }
+    const double silent_tol = std::max(kPlanarityTolAbs, kPlanarityTolRel * diameter);
+    const double bound = std::max(silent_tol, options_.max_off_plane * diameter);
+    const double percent = 100.0 * worst_d / diameter;
+    if (worst_d > bound) {
+      // Point at the worst point's index where the record lists points.
+      const int column = point_columns.size() == n ? point_columns[worst] : l.tokens[0].column;
+      return error(l, column,
+                   fmt::format("face {} is not planar: point {} is {:.3g} m off the face's least-squares plane, "
+                               "{:.3g} % of its {:.3g} m diameter (refused above {:.3g} %, the reader's "
+                               "max_off_plane)",
+                               i, loop[worst], worst_d, percent, diameter, 100.0 * options_.max_off_plane));
+    }
+    if (worst_d > silent_tol) {
+      Error w = error(l, l.tokens[0].column,
+                      fmt::format("face {} is not planar: point {} is {:.3g} m off the face's least-squares plane, "
+                                  "{:.3g} % of its {:.3g} m diameter; accepted (refused above {:.3g} %)",
+                                  i, loop[worst], worst_d, percent, diameter, 100.0 * options_.max_off_plane));
+      if (warnings_ != nullptr) {
+        warnings_->push_back(std::move(w));
+      } else {
+        V4R_LOG_WARN("{}", w.to_string());
+      }
     }
     std::vector<Index> ids;
     ids.reserve(n);
     for (std::size_t k : loop) ids.push_back(point_ids_[k]);
-    auto r = b_.add_face(ids, std::move(attr), tol * 1.01);
+    auto r = b_.add_face(ids, std::move(attr), std::max(bound, worst_d) * 1.01 + 1e-12);
     if (!r) return error(l, l.tokens[0].column, fmt::format("face {}: {}", i, r.error().message));
     return {};
   }
@@ -615,7 +653,9 @@ class CaoFileParser {
     if (!loop) return loop.error();
     auto attr = attributes(l, loop->size() + 1, fmt::format("{} point indices of face {}", loop->size(), i));
     if (!attr) return attr.error();
-    return add_face(l, i, *loop, std::move(*attr));
+    std::vector<int> columns;
+    for (std::size_t k = 0; k < loop->size(); ++k) columns.push_back(l.tokens[k + 1].column);
+    return add_face(l, i, *loop, std::move(*attr), columns);
   }
 
   Expected<void> parse_face_from_lines(const TextLine& l, long long i) {
@@ -721,6 +761,8 @@ class CaoFileParser {
   }
 
   ModelBuilder& b_;
+  const CaoReadOptions& options_;
+  std::vector<Error>* warnings_;  ///< accepted imperfections, or nullptr
   std::string source_;
   Eigen::Isometry3d T_;  ///< T_root_file: places this file's points in the root model frame
   std::vector<std::string> chain_keys_, chain_names_;  ///< files being parsed, root first (this one last)
@@ -734,9 +776,15 @@ class CaoFileParser {
 
 }  // namespace
 
-Expected<Model> parse_cao(const std::string& text, const std::string& source) {
+Expected<Model> parse_cao(const std::string& text, const std::string& source, const CaoReadOptions& options,
+                          std::vector<Error>* warnings) {
+  if (!(options.max_off_plane >= 0.0 && options.max_off_plane <= 1.0))
+    return Error{fmt::format("reader option max_off_plane must be in [0, 1] (fraction of a face's diameter), got {}",
+                             options.max_off_plane),
+                 source, 0, 0, "max_off_plane"};
   ModelBuilder builder(fs::path(source).stem().string());
-  CaoFileParser parser(builder, source, text, Eigen::Isometry3d::Identity(), {file_key(source)}, {source});
+  CaoFileParser parser(builder, source, text, Eigen::Isometry3d::Identity(), {file_key(source)}, {source}, options,
+                       warnings);
   if (auto r = parser.run(); !r) return r.error();
   auto model = std::move(builder).build();
   if (!model) {
@@ -747,10 +795,10 @@ Expected<Model> parse_cao(const std::string& text, const std::string& source) {
   return model;
 }
 
-Expected<Model> load_cao(const std::string& path) {
+Expected<Model> load_cao(const std::string& path, const CaoReadOptions& options, std::vector<Error>* warnings) {
   const std::optional<std::string> text = read_text_file(path);
   if (!text) return Error{"cannot open file", path, 0, 0, {}};
-  return parse_cao(*text, path);
+  return parse_cao(*text, path, options, warnings);
 }
 
 }  // namespace v4r::model

@@ -3,10 +3,30 @@
 
 #include <cmath>
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <fmt/format.h>
 
 namespace v4r::model {
+namespace {
+
+/// Unit normal of the least-squares plane through `centroid` of the loop's points (the
+/// eigenvector of their scatter matrix with the smallest eigenvalue), on the side of `orient`.
+Eigen::Vector3d least_squares_plane_normal(const std::vector<Junction>& junctions, const std::vector<Index>& loop,
+                                           const Eigen::Vector3d& centroid, const Eigen::Vector3d& orient) {
+  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+  for (Index j : loop) {
+    const Eigen::Vector3d d = junctions[j].p - centroid;
+    scatter += d * d.transpose();
+  }
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(scatter);
+  Eigen::Vector3d n = eig.eigenvectors().col(0);  // eigenvalues in increasing order
+  if (eig.info() != Eigen::Success || !n.allFinite()) n = orient;
+  n.normalize();
+  return n.dot(orient) < 0.0 ? Eigen::Vector3d(-n) : n;
+}
+
+}  // namespace
 
 Index ModelBuilder::add_junction(const Eigen::Vector3d& p, Attributes attr) {
   Junction j;
@@ -44,18 +64,19 @@ Expected<Index> ModelBuilder::add_face(const std::vector<Index>& loop, Attribute
     if (j >= m_.junctions_.size())
       return make_error(fmt::format("face refers to point {} but only {} points exist", j, m_.junctions_.size()));
   }
-  // Newell's method: robust normal of a (near-)planar polygon, oriented by the CCW order.
-  Eigen::Vector3d n = Eigen::Vector3d::Zero();
+  // The face's least-squares plane: through the centroid, normal along the smallest principal
+  // axis of the points, oriented like Newell's normal (i.e. by the CCW order of the loop).
+  Eigen::Vector3d newell = Eigen::Vector3d::Zero();
   Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
   for (std::size_t i = 0; i < loop.size(); ++i) {
     const Eigen::Vector3d& p = m_.junctions_[loop[i]].p;
     const Eigen::Vector3d& q = m_.junctions_[loop[(i + 1) % loop.size()]].p;
-    n += p.cross(q);
+    newell += p.cross(q);
     centroid += p;
   }
   centroid /= static_cast<double>(loop.size());
-  if (n.norm() < 1e-12) return make_error("face is degenerate (zero area)");
-  n.normalize();
+  if (newell.norm() < 1e-12) return make_error("face is degenerate (zero area)");
+  const Eigen::Vector3d n = least_squares_plane_normal(m_.junctions_, loop, centroid, newell);
   for (Index j : loop) {
     const double d = std::abs(n.dot(m_.junctions_[j].p - centroid));
     if (d > planarity_tol)

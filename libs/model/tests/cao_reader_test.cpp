@@ -9,6 +9,7 @@
 #include <unistd.h>
 
 #include <Eigen/Geometry>
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include "v4r/model/cao_reader.hpp"
@@ -16,6 +17,7 @@
 namespace fs = std::filesystem;
 using v4r::model::Index;
 using v4r::model::kNone;
+using v4r::model::CaoReadOptions;
 using v4r::model::load_cao;
 using v4r::model::Model;
 using v4r::model::parse_cao;
@@ -374,6 +376,113 @@ TEST(CaoInclude, LoadCaoReportsAMissingTopLevelFile) {
   EXPECT_NE(m.error().message.find("cannot open"), std::string::npos);
 }
 
+// ---- faces that are not exactly planar (CAD exports, hand-measured models) ----------------------
+
+namespace {
+
+/// A 0.08 x 0.08 m square in z = 0 whose corners are lifted alternately by +d and -d, so its
+/// least-squares plane is z = 0 and every corner is d off it; the diameter is the diagonal.
+/// The face record is on line 11.
+std::string warped_square(double d) {
+  return fmt::format(
+      "V1\n# a warped square\n4\n0 0 {}\n0.08 0 {}\n0.08 0.08 {}\n0 0.08 {}\n0\n0\n1\n4 0 1 2 3 name=lid\n0\n0\n",
+      d, -d, d, -d);
+}
+constexpr double kDiagonal = 0.08 * 1.4142135623730951;
+
+}  // namespace
+
+TEST(CaoPlanarity, SlightlyWarpedFaceLoadsWithOneWarningNamingFileLineAndOffset) {
+  const double d = 0.015 * kDiagonal;  // 1.5 % of the diameter: 1.7 mm
+  std::vector<v4r::Error> warnings;
+  auto m = parse_cao(warped_square(d), "warped.cao", {}, &warnings);
+  ASSERT_TRUE(m) << m.error().to_string();
+  ASSERT_EQ(m->faces().size(), 1u);
+  // The face gets its least-squares plane: normal +z (CCW seen from +z).
+  EXPECT_NEAR(m->faces()[0].normal.z(), 1.0, 1e-12);
+  EXPECT_EQ(m->faces()[0].attr.name, "lid");
+  EXPECT_EQ(m->lines().size(), 4u);
+  ASSERT_EQ(warnings.size(), 1u);
+  const v4r::Error& w = warnings[0];
+  EXPECT_EQ(w.file, "warped.cao");
+  EXPECT_EQ(w.line, 11);
+  EXPECT_EQ(w.column, 1);
+  EXPECT_NE(w.message.find("face 0 is not planar"), std::string::npos) << w.message;
+  EXPECT_NE(w.message.find(fmt::format("{:.3g} m off", d)), std::string::npos) << w.message;
+  EXPECT_NE(w.message.find("1.5 %"), std::string::npos) << w.message;
+  EXPECT_NE(w.to_string().find("warped.cao:11:1: "), std::string::npos) << w.to_string();
+}
+
+TEST(CaoPlanarity, FaceOffPlaneBeyondTheBoundIsRefusedWithFileLineColumn) {
+  const double d = 0.18 * kDiagonal;  // 18 %
+  std::vector<v4r::Error> warnings;
+  auto m = parse_cao(warped_square(d), "warped.cao", {}, &warnings);
+  ASSERT_FALSE(m) << "an 18 % warped face was accepted";
+  EXPECT_EQ(m.error().file, "warped.cao");
+  EXPECT_EQ(m.error().line, 11);
+  // The column is that of the worst point's index (all four are equally off here).
+  EXPECT_TRUE(m.error().column == 3 || m.error().column == 5 || m.error().column == 7 || m.error().column == 9)
+      << m.error().to_string();
+  EXPECT_NE(m.error().message.find("18 % of its 0.113 m diameter"), std::string::npos) << m.error().message;
+  EXPECT_NE(m.error().message.find("max_off_plane"), std::string::npos) << m.error().message;
+}
+
+TEST(CaoPlanarity, TheIssueExample_0_75mmOver8cmLoads) {
+  // Today's complaint: a face 0.75 mm off-plane over 8 cm was refused (tolerance 0.128 mm).
+  const std::string text = "4\n0 0 0\n0.08 0 0\n0.08 0.08 0.00075\n0 0.08 0\n0\n0\n1\n4 0 1 2 3\n";
+  std::vector<v4r::Error> warnings;
+  auto m = parse_cao(text, "part.cao", {}, &warnings);
+  ASSERT_TRUE(m) << m.error().to_string();
+  EXPECT_EQ(warnings.size(), 1u);
+}
+
+TEST(CaoPlanarity, PlanarAndNearlyPlanarFacesGiveNoWarning) {
+  std::vector<v4r::Error> warnings;
+  ASSERT_TRUE(parse_cao(warped_square(0.0), "flat.cao", {}, &warnings));
+  ASSERT_TRUE(parse_cao(warped_square(0.00005), "flat.cao", {}, &warnings));  // 0.05 mm: CAD rounding
+  EXPECT_TRUE(warnings.empty()) << warnings.front().to_string();
+}
+
+TEST(CaoPlanarity, TheBoundIsAReaderOption) {
+  const std::string text = warped_square(0.015 * kDiagonal);
+  CaoReadOptions strict;
+  strict.max_off_plane = 0.01;
+  auto m = parse_cao(text, "warped.cao", strict);
+  ASSERT_FALSE(m);
+  EXPECT_EQ(m.error().line, 11);
+  EXPECT_NE(m.error().message.find("refused above 1 %"), std::string::npos) << m.error().message;
+
+  CaoReadOptions lax;
+  lax.max_off_plane = 0.25;
+  std::vector<v4r::Error> warnings;
+  EXPECT_TRUE(parse_cao(warped_square(0.18 * kDiagonal), "warped.cao", lax, &warnings));
+  EXPECT_EQ(warnings.size(), 1u);
+
+  for (double bad : {-0.1, 1.5, std::nan("")}) {
+    CaoReadOptions o;
+    o.max_off_plane = bad;
+    auto e = parse_cao(text, "warped.cao", o);
+    ASSERT_FALSE(e);
+    EXPECT_EQ(e.error().field, "max_off_plane");
+  }
+}
+
+TEST(CaoPlanarity, WarningInsideAnIncludedFileNamesThatFile) {
+  const fs::path dir = fs::temp_directory_path() / fmt::format("v4r_cao_planarity_{}", ::getpid());
+  fs::create_directories(dir);
+  {
+    std::ofstream(dir / "part.cao") << warped_square(0.015 * kDiagonal);
+    std::ofstream(dir / "top.cao") << "V1\nload(\"part.cao\", t=[0, 0, 0.5])\n0\n0\n0\n0\n";
+  }
+  std::vector<v4r::Error> warnings;
+  auto m = load_cao((dir / "top.cao").string(), {}, &warnings);
+  ASSERT_TRUE(m) << m.error().to_string();
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].file.find("part.cao"), std::string::npos) << warnings[0].to_string();
+  EXPECT_EQ(warnings[0].line, 11);
+  fs::remove_all(dir);
+}
+
 // ---- malformed input ----------------------------------------------------------------------------
 
 struct BadCase {
@@ -430,7 +539,10 @@ std::vector<BadCase> bad_cases() {
       {"FaceWithTwoPoints", kPts + "0\n0\n1\n2 0 1\n", 8, 1, "a face needs at least 3 points, found 2"},
       {"FaceShorterThanAnnounced", kSq + "0\n0\n1\n4 0 1 2 name=q\n", 9, 9, "face 0 announces 4 points but lists 3"},
       {"FaceRepeatsAPoint", kSq + "0\n0\n1\n4 0 1 2 1\n", 9, 9, "face 0 lists point 1 twice"},
-      {"NonPlanarFace", "4\n0 0 0\n1 0 0\n1 1 0.05\n0 1 0\n0\n0\n1\n4 0 1 2 3\n", 9, 1, "face 0 is not planar: point 0 is 0.0124922 m off its plane"},
+      // Point 3 is 0.259 m off the least-squares plane, 18.3 % of the 1.414 m diameter (bound 10 %):
+      // the column is that of point 3's index.
+      {"NonPlanarFace", "5\n0 0 0\n1 0 0\n1 1 0\n0.5 1 0.4\n0 1 0\n0\n0\n1\n5 0 1 2 3 4\n", 10, 9,
+       "face 0 is not planar: point 3 is 0.259 m off the face's least-squares plane, 18.3 % of its 1.41 m diameter"},
       {"DegenerateFace", "3\n0 0 0\n1 0 0\n2 0 0\n0\n0\n1\n3 0 1 2\n", 8, 1, "face 0 is degenerate: its points enclose no area"},
       {"FaceCountTooLarge", kPts + "0\n0\n1\n99999999999999999999 0 1 2\n", 8, 1, "the number of points is too large"},
       {"FaceLongerThanItsLine", kPts + "0\n0\n1\n1000000 0 1 2\n", 8, 14, "announces 1000000 points but lists 3"},

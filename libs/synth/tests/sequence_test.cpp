@@ -28,7 +28,9 @@ std::string read_file(const fs::path& p) {
 }
 
 /// The repository root, from this file's path (libs/synth/tests/sequence_test.cpp).
-fs::path repo_root() { return fs::path(__FILE__).parent_path().parent_path().parent_path().parent_path(); }
+// From CMake: __FILE__ is relative to the build folder when ccache (CCACHE_BASEDIR) or Ninja
+// rewrite the paths, and ctest runs the tests elsewhere.
+fs::path repo_root() { return fs::path(V4R_SOURCE_DIR); }
 
 /// A fresh scratch directory, removed at the end of the test.
 class ScratchDir {

@@ -109,8 +109,8 @@ class ModelBuilder {
   Index add_junction(const Eigen::Vector3d& p, Attributes attr = {});
   /// Adds a straight edge between junctions a and b, or returns the existing one between them.
   Index add_line(Index a, Index b, Attributes attr = {});
-  /// Adds a face from a loop of junctions (CCW from outside, at least 3, planar within
-  /// `planarity_tol` metres). With FaceEdges::kAdd its boundary edges are added with add_line and
+  /// Adds a face from a loop of junctions (CCW from outside, at least 3, each within
+  /// `planarity_tol` metres of the loop's least-squares plane, whose normal the face gets). With FaceEdges::kAdd its boundary edges are added with add_line and
   /// linked to the face; with FaceEdges::kSkip no line is added (link lines with set_line_faces).
   Expected<Index> add_face(const std::vector<Index>& loop, Attributes attr = {}, double planarity_tol = 1e-4,
                            FaceEdges edges = FaceEdges::kAdd);
