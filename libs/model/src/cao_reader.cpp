@@ -185,8 +185,10 @@ SectionInfo info(Section s) {
 class CaoFileParser {
  public:
   CaoFileParser(ModelBuilder& builder, std::string source, std::string_view text, const Eigen::Isometry3d& T_root_file,
-                std::vector<std::string> chain_keys, std::vector<std::string> chain_names)
+                std::vector<std::string> chain_keys, std::vector<std::string> chain_names,
+                const IncludeCheck* check = nullptr)
       : b_(builder),
+        check_(check),
         source_(std::move(source)),
         T_(T_root_file),
         chain_keys_(std::move(chain_keys)),
@@ -423,7 +425,16 @@ class CaoFileParser {
 
   Expected<void> include(const TextLine& l, int column, std::string_view given, const Eigen::Vector3d& t,
                          const Eigen::Vector3d& tu) {
-    const fs::path resolved = (fs::path(source_).parent_path() / fs::path(std::string(given))).lexically_normal();
+    fs::path resolved = (fs::path(source_).parent_path() / fs::path(std::string(given))).lexically_normal();
+    if (check_ && *check_) {
+      auto allowed = (*check_)(resolved.string());
+      if (!allowed) {
+        Error e = error(l, column, fmt::format("load(\"{}\"): {}", given, allowed.error().message));
+        e.field = allowed.error().field;
+        return e;
+      }
+      resolved = *allowed;
+    }
     const std::string name = resolved.string();
     const std::string key = file_key(resolved);
     if (std::find(chain_keys_.begin(), chain_keys_.end(), key) != chain_keys_.end()) {
@@ -442,7 +453,7 @@ class CaoFileParser {
     std::vector<std::string> keys = chain_keys_, names = chain_names_;
     keys.push_back(key);
     names.push_back(name);
-    CaoFileParser child(b_, name, *text, T_ * T_file_child, std::move(keys), std::move(names));
+    CaoFileParser child(b_, name, *text, T_ * T_file_child, std::move(keys), std::move(names), check_);
     if (auto r = child.run(); !r) {
       Error e = r.error();
       e.message += fmt::format(" [included from {}:{}]", source_, l.number);
@@ -721,6 +732,7 @@ class CaoFileParser {
   }
 
   ModelBuilder& b_;
+  const IncludeCheck* check_ = nullptr;  ///< decides which files load(...) may read (null: any)
   std::string source_;
   Eigen::Isometry3d T_;  ///< T_root_file: places this file's points in the root model frame
   std::vector<std::string> chain_keys_, chain_names_;  ///< files being parsed, root first (this one last)
@@ -734,9 +746,11 @@ class CaoFileParser {
 
 }  // namespace
 
-Expected<Model> parse_cao(const std::string& text, const std::string& source) {
+Expected<Model> parse_cao(const std::string& text, const std::string& source) { return parse_cao(text, source, {}); }
+
+Expected<Model> parse_cao(const std::string& text, const std::string& source, const IncludeCheck& check) {
   ModelBuilder builder(fs::path(source).stem().string());
-  CaoFileParser parser(builder, source, text, Eigen::Isometry3d::Identity(), {file_key(source)}, {source});
+  CaoFileParser parser(builder, source, text, Eigen::Isometry3d::Identity(), {file_key(source)}, {source}, &check);
   if (auto r = parser.run(); !r) return r.error();
   auto model = std::move(builder).build();
   if (!model) {
@@ -747,10 +761,12 @@ Expected<Model> parse_cao(const std::string& text, const std::string& source) {
   return model;
 }
 
-Expected<Model> load_cao(const std::string& path) {
+Expected<Model> load_cao(const std::string& path) { return load_cao(path, {}); }
+
+Expected<Model> load_cao(const std::string& path, const IncludeCheck& check) {
   const std::optional<std::string> text = read_text_file(path);
   if (!text) return Error{"cannot open file", path, 0, 0, {}};
-  return parse_cao(*text, path);
+  return parse_cao(*text, path, check);
 }
 
 }  // namespace v4r::model
