@@ -89,6 +89,7 @@ Quit
 '
 seed "$P" events 'ObjectPose object=box frame=17 stamp=0.5666666666666667 t=0.01,-0.02,0.5 q=1,0,0,0 cov=1e-06,0,0,0,0,0,0,1e-06,0,0,0,0,0,0,1e-06,0,0,0,0,0,0,1e-04,0,0,0,0,0,0,1e-04,0,0,0,0,0,0,1e-04 quality=0.93 status=tracking
 SystemStatus frame=41 cycle_ms=12.375 features_found=120 features_used=97 outliers=11 overruns=3
+SystemStatus frame=42 cycle_ms=1.5 features_found=0 features_used=0 outliers=0 overruns=3 failed=1
 '
 seed "$P" errors 'AddObject name="unterminated
 AddFeature object=box type=junction id=J1 p=nan,1e999,0x10
@@ -175,8 +176,8 @@ for w in Hello OK ERR AddObject RemoveObject AddModel AddFeature RemoveFeature S
          Unsubscribe SetParam GetParam ListParams Start Pause Display Log Ping Quit Auth ObjectPose \
          SystemStatus name= object= format= bytes= path= type= id= p= from= to= center= normal= \
          radius= t= r= what= rate= value= file= token= frame= stamp= q= cov= quality= status= \
-         cycle_ms= features_found= features_used= outliers= overruns= code= msg= version= auth= \
-         junction line circle cao obj ply stl on off tracking degraded lost required nan inf e-324 \
+         cycle_ms= features_found= features_used= outliers= overruns= failed= code= msg= version= auth= \
+         junction line circle cao obj ply stl on off tracking degraded lost failed forbidden required nan inf e-324 \
          e308 '\"' '\\' '\x0d\x0a' '\x00' '\xff'; do
   printf '"%s"\n' "$w" >>"$DICT"
 done

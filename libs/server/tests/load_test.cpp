@@ -161,7 +161,6 @@ TEST(ServerLoad, NeverReadingClientIsDroppedOthersGetEveryOneOf5000Frames) {
   // Bounded outbox: one write holds at most the replies plus the event backlog of each stream.
   EXPECT_LE(st.peak_write_lines, 2 * o.event_backlog + 8);
   EXPECT_LT(st.peak_write_bytes, (2 * o.event_backlog + 8) * 1024);
-  EXPECT_LT(never_bytes, 4u << 20) << "the non-reader got at most what the socket buffers held";
   for (int i = 0; i < kReaders; ++i) {
     EXPECT_TRUE(readers[i].ok) << "reader " << i;
     EXPECT_EQ(std::count(readers[i].pose.begin(), readers[i].pose.end(), 1), kFrames) << "reader " << i;
