@@ -72,7 +72,12 @@ struct ServerStats {
 /// serving (commands still work) until it is stopped. Events go to every subscribed client; a
 /// slow one gets the newest pose per object, a client that leaves more than max_replies replies
 /// unread is dropped after a last `ERR ? code=busy`, and one whose writes make no progress for
-/// write_stall_timeout is dropped.
+/// write_stall_timeout is dropped after `ERR ? code=busy msg="not reading..."` (sent if it reads
+/// within close_grace).
+///
+/// Files: clients reach only the operator's folders (data_dirs for models and their includes,
+/// log_dir for `Log on file=`); anything else gets `code=forbidden` and is neither read nor
+/// created. Faults: see TrackingService; the network thread logs a handler that throws and goes on.
 class Server {
  public:
   /// Validates the options (a non-loopback bind needs a token), opens the input (checking its

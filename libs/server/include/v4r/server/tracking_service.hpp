@@ -79,6 +79,12 @@ struct ModelReady {
 /// Play state: with `paused` the service holds before frame 0 until Start. Pause holds before
 /// the next frame (the last one is not processed again, no events are sent). At the end of the
 /// input the service stops producing events and keeps applying commands.
+///
+/// Faults: a throw in one object's cycle marks that object failed (status=failed with its last
+/// pose and a growing covariance, SystemStatus failed=N, logged) until SetPose or AddModel; a
+/// throw elsewhere in a frame skips that frame, in a command answers it `ERR ... code=internal`,
+/// in the overlay drops that picture. Whatever escapes ends the thread through a top-level
+/// handler that logs it and answers every waiting command (healthy() turns false).
 class TrackingService {
  public:
   using ReplyFn = std::function<void(std::string)>;  ///< receives the reply line (without LF)
