@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Builds the libFuzzer targets with clang in a separate build directory and runs each for a
 # bounded time (issue 4). Usage: fuzz/run.sh [seconds per target]   (default 30)
-# Environment: BUILD_DIR (default build-fuzz), JOBS (default 2), TARGETS (default "protocol cao"),
+# Environment: BUILD_DIR (default build-fuzz), JOBS (default 2), TARGETS (default "protocol cao http"),
 #              CXX (default clang++).
 # The seed corpora and the protocol dictionary are written into the build directory; findings go
 # to $BUILD_DIR/artifacts/<target>/. Exit status: 0 when no target found a crash.
@@ -11,7 +11,7 @@ ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 SECONDS_PER_TARGET="${1:-${FUZZ_TIME:-30}}"
 BUILD_DIR="${BUILD_DIR:-$ROOT/build-fuzz}"
 JOBS="${JOBS:-2}"
-TARGETS="${TARGETS:-protocol cao}"
+TARGETS="${TARGETS:-protocol cao http}"
 CXX="${CXX:-clang++}"
 SAN="-fsanitize=fuzzer-no-link,address,undefined -fno-sanitize-recover=undefined"
 
@@ -89,6 +89,7 @@ Quit
 '
 seed "$P" events 'ObjectPose object=box frame=17 stamp=0.5666666666666667 t=0.01,-0.02,0.5 q=1,0,0,0 cov=1e-06,0,0,0,0,0,0,1e-06,0,0,0,0,0,0,1e-06,0,0,0,0,0,0,1e-04,0,0,0,0,0,0,1e-04,0,0,0,0,0,0,1e-04 quality=0.93 status=tracking
 SystemStatus frame=41 cycle_ms=12.375 features_found=120 features_used=97 outliers=11 overruns=3
+SystemStatus frame=42 cycle_ms=1.5 features_found=0 features_used=0 outliers=0 overruns=3 failed=1
 '
 seed "$P" errors 'AddObject name="unterminated
 AddFeature object=box type=junction id=J1 p=nan,1e999,0x10
@@ -161,6 +162,13 @@ load("part.cao", t=[0.1, 0, 0], tu=[0, 0, 1.57])
 0
 '
 
+H="$BUILD_DIR/corpus/http"
+seed "$H" get $'GET / HTTP/1.0\r\nHost: x\r\n\r\n'
+seed "$H" status $'GET /status.json?token=s3cret&x=1 HTTP/1.1\r\nHost: localhost:8080\r\nAccept: */*\r\n\r\n'
+seed "$H" stream $'HEAD /stream.mjpg?token= HTTP/1.1\r\nUser-Agent: Mozilla/5.0 (X11)\r\nConnection: keep-alive\r\n\r\nbody'
+seed "$H" bad $'POST /x HTTP/2\r\n: no name\r\n\r\n'
+seed "$H" lf $'GET /index.html HTTP/1.0\n\n'
+
 # libFuzzer dictionary for the protocol: the words of docs/protocol.md.
 DICT="$BUILD_DIR/protocol.dict"
 : >"$DICT"
@@ -168,8 +176,8 @@ for w in Hello OK ERR AddObject RemoveObject AddModel AddFeature RemoveFeature S
          Unsubscribe SetParam GetParam ListParams Start Pause Display Log Ping Quit Auth ObjectPose \
          SystemStatus name= object= format= bytes= path= type= id= p= from= to= center= normal= \
          radius= t= r= what= rate= value= file= token= frame= stamp= q= cov= quality= status= \
-         cycle_ms= features_found= features_used= outliers= overruns= code= msg= version= auth= \
-         junction line circle cao obj ply stl on off tracking degraded lost required nan inf e-324 \
+         cycle_ms= features_found= features_used= outliers= overruns= failed= code= msg= version= auth= \
+         junction line circle cao obj ply stl on off tracking degraded lost failed forbidden required nan inf e-324 \
          e308 '\"' '\\' '\x0d\x0a' '\x00' '\xff'; do
   printf '"%s"\n' "$w" >>"$DICT"
 done
@@ -183,6 +191,7 @@ for t in $TARGETS; do
   extra=()
   [ "$t" = protocol ] && extra+=("-dict=$DICT" -max_len=12000)
   [ "$t" = cao ] && extra+=(-max_len=8192 -timeout=10)
+  [ "$t" = http ] && extra+=(-max_len=9000)
   echo "== $t: fuzzing for ${SECONDS_PER_TARGET}s"
   log="$BUILD_DIR/fuzz-$t.log"
   if "$bin" "$BUILD_DIR/corpus/$t" -max_total_time="$SECONDS_PER_TARGET" -print_final_stats=1 \

@@ -96,6 +96,11 @@ void add_serve_command(CLI::App& app, int& exit_code) {
       ->check(CLI::Range(1, 100000))
       ->capture_default_str();
   serve->add_option("--log-file", a->opt.log_file, "CSV written by `Log on` without file=")->capture_default_str();
+  serve->add_option("--data-dir", a->opt.data_dirs,
+                    "Folder that `AddModel path=` (and .cao load(...)) may read; repeatable; relative paths are taken "
+                    "inside the first (default: the folder serve was started in)");
+  serve->add_option("--log-dir", a->opt.log_dir,
+                    "Folder that `Log on file=` may write (default: none, `file=` is refused)");
   serve->add_option("--config", a->config_file, "YAML file of tracker parameters (see `v4r config`)");
   serve->add_option("--set", a->sets, "Set one parameter: --set track.rows=32 (repeatable)");
   serve->callback([a, &exit_code] { exit_code = run_serve(*a); });

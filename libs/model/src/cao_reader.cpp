@@ -429,7 +429,16 @@ class CaoFileParser {
 
   Expected<void> include(const TextLine& l, int column, std::string_view given, const Eigen::Vector3d& t,
                          const Eigen::Vector3d& tu) {
-    const fs::path resolved = (fs::path(source_).parent_path() / fs::path(std::string(given))).lexically_normal();
+    fs::path resolved = (fs::path(source_).parent_path() / fs::path(std::string(given))).lexically_normal();
+    if (options_.include_check) {
+      auto allowed = options_.include_check(resolved.string());
+      if (!allowed) {
+        Error e = error(l, column, fmt::format("load(\"{}\"): {}", given, allowed.error().message));
+        e.field = allowed.error().field;
+        return e;
+      }
+      resolved = *allowed;
+    }
     const std::string name = resolved.string();
     const std::string key = file_key(resolved);
     if (std::find(chain_keys_.begin(), chain_keys_.end(), key) != chain_keys_.end()) {

@@ -99,6 +99,29 @@ ParamRegistry make_registry(CycleParams& p) {
   r.add("filter.accel_noise", &p.filter.accel_noise, 0.0, 1000.0, "m/s^2", "white-noise acceleration (translation)");
   r.add("filter.angular_accel_noise", &p.filter.angular_accel_noise, 0.0, 1000.0, "rad/s^2", "white-noise angular acceleration");
   r.add("filter.frame_interval", &p.frame_interval_s, 1e-4, 10.0, "s", "time between frames without time stamps");
+  // Parameters that existed without a name (issue 13: `v4r config` prints every parameter).
+  // Not here: ellipse max_samples (from ellipse.samples) and solver focal_px (from the camera).
+  r.add("track.side_offset", &t.side_offset, 0, 32, "px", "from an edge pixel to the first appearance sample across the edge");
+  r.add("track.side_width", &t.side_width, 1, 16, "px", "appearance samples on each side of an edge pixel");
+  r.add("track.chroma_min_sigma", &t.chroma_min_sigma, 0.0, 1.0, "", "floor of the rg-chromaticity deviation (colour input)");
+  r.add("track.shadow_tolerance", &t.shadow_tolerance, 0.0, 10.0, "",
+        "colour input: intensity may also differ from the learned mean by this fraction of it");
+  r.add("track.learn_min_inlier_ratio", &t.learn_min_inlier_ratio, 0.0, 1.0, "",
+        "inlier ratio a fit needs for the appearance to be learned from scratch");
+  r.add("ellipse.max_candidates_per_line", &el.max_candidates_per_line, 1, 16, "", "edge point candidates kept per tracking line");
+  r.add("ellipse.max_edge_angle", &el.max_edge_angle, 0.01, 1.5707963, "rad", "largest angle of the gradient to the sample normal");
+  r.add("solver.min_observations", &s.min_observations, 1, 1000, "", "below this many observations the solve fails");
+  r.add("solver.oblique_weighting", &s.oblique_weighting, "exact object-space sigmas for oblique rays");
+  r.add("solver.robust_max_iterations", &s.robust_max_iterations, 1, 1000, "", "iterations of the robust (IRLS) pass");
+  r.add("solver.robust_step_tolerance", &s.robust_step_tolerance, 0.0, 1.0, "m|rad", "robust pass: smallest step");
+  r.add("solver.max_threshold_scale", &s.max_threshold_scale, 1.0, 100.0, "",
+        "a robust pass whose noise scale exceeds this is discarded");
+  r.add("solver.degeneracy_ratio", &s.degeneracy_ratio, 0.0, 1.0, "", "smallest eigenvalue ratio of a non-degenerate solve");
+  r.add("solver.min_depth", &s.min_depth, 1e-9, 10.0, "m", "depth used for the weights of points at or behind the camera");
+  r.add("filter.init_velocity_sigma", &p.filter.init_velocity_sigma, 0.0, 100.0, "m/s", "velocity uncertainty after a (re)start");
+  r.add("filter.init_angular_velocity_sigma", &p.filter.init_angular_velocity_sigma, 0.0, 100.0, "rad/s",
+        "angular velocity uncertainty after a (re)start");
+  r.add("filter.reference_dt", &p.filter.reference_dt, 1e-4, 10.0, "s", "frame interval at which the noise levels hold");
   return r;
 }
 

@@ -816,6 +816,17 @@ void VisionCycle::fuse_and_filter(scene::Scene& scene, scene::Object& obj, Objec
   rep.quality = obj.quality;
 }
 
+void VisionCycle::object_failed(scene::Object& obj, ObjectReport& rep, const char* what) const {
+  obj.status = scene::TrackStatus::kUninitialised;
+  obj.quality = 0.0;
+  rep.status = scene::TrackStatus::kUninitialised;
+  rep.failed = true;
+  try {
+    rep.error = what;
+  } catch (...) {  // out of memory: the flag alone must do
+  }
+}
+
 const CycleReport& VisionCycle::process(scene::Scene& scene, std::span<const CameraImage> images, double stamp_s) {
   const auto t0 = now_();
   prepare(scene);
@@ -834,20 +845,27 @@ const CycleReport& VisionCycle::process(scene::Scene& scene, std::span<const Cam
     ObjectReport& rep = report_.objects[oi];
     rep = ObjectReport{};
     if (obj.status == scene::TrackStatus::kUninitialised) continue;
-    rep.search_level = std::min(obj.bad_frames, p_.recovery.max_search_level);
-    const double dt = obj.last_stamp >= 0.0 ? std::max(0.0, stamp_s - obj.last_stamp) : 0.0;
-    obj.T_pred = p_.use_filter && obj.filter.initialised() && obj.status != scene::TrackStatus::kLost
-                     ? obj.filter.predict_pose(dt)
-                     : obj.T_ref_obj;
-    obj.covariance_pred.setZero();
-    if (p_.use_filter && obj.filter.initialised()) {
-      filter::PoseFilter ahead = obj.filter;  // (fixed-size state: no allocation)
-      ahead.predict(dt);
-      obj.covariance_pred = ahead.pose_covariance();
-    }
-    for (scene::View& view : obj.views) {
-      if (view.camera >= images.size() || images[view.camera].grey.empty()) continue;
-      predict_view(obj, view, scene.cameras()[view.camera]);
+    // One object's fault (a bug, bad_alloc, an OpenCV exception) must not end the others' cycle.
+    try {
+      rep.search_level = std::min(obj.bad_frames, p_.recovery.max_search_level);
+      const double dt = obj.last_stamp >= 0.0 ? std::max(0.0, stamp_s - obj.last_stamp) : 0.0;
+      obj.T_pred = p_.use_filter && obj.filter.initialised() && obj.status != scene::TrackStatus::kLost
+                       ? obj.filter.predict_pose(dt)
+                       : obj.T_ref_obj;
+      obj.covariance_pred.setZero();
+      if (p_.use_filter && obj.filter.initialised()) {
+        filter::PoseFilter ahead = obj.filter;  // (fixed-size state: no allocation)
+        ahead.predict(dt);
+        obj.covariance_pred = ahead.pose_covariance();
+      }
+      for (scene::View& view : obj.views) {
+        if (view.camera >= images.size() || images[view.camera].grey.empty()) continue;
+        predict_view(obj, view, scene.cameras()[view.camera]);
+      }
+    } catch (const std::exception& e) {
+      object_failed(obj, rep, e.what());
+    } catch (...) {
+      object_failed(obj, rep, "unknown exception");
     }
   }
   const auto t1 = now_();
@@ -861,16 +879,23 @@ const CycleReport& VisionCycle::process(scene::Scene& scene, std::span<const Cam
     scene::Object& obj = objects[oi];
     ObjectReport& rep = report_.objects[oi];
     if (obj.status == scene::TrackStatus::kUninitialised) continue;
-    for (scene::View& view : obj.views) {
-      if (view.camera >= images.size() || images[view.camera].grey.empty()) {
-        view.pose.status = estimation::SolveStatus::kTooFewObservations;
-        continue;
+    try {
+      if (object_hook_) object_hook_(obj);
+      for (scene::View& view : obj.views) {
+        if (view.camera >= images.size() || images[view.camera].grey.empty()) {
+          view.pose.status = estimation::SolveStatus::kTooFewObservations;
+          continue;
+        }
+        process_view(obj, view, scene.cameras()[view.camera], images[view.camera], rep);
       }
-      process_view(obj, view, scene.cameras()[view.camera], images[view.camera], rep);
+      const auto tf = now_();
+      fuse_and_filter(scene, obj, rep, stamp_s);
+      report_.solve_ms += ms_between(tf, now_());
+    } catch (const std::exception& e) {
+      object_failed(obj, rep, e.what());
+    } catch (...) {
+      object_failed(obj, rep, "unknown exception");
     }
-    const auto tf = now_();
-    fuse_and_filter(scene, obj, rep, stamp_s);
-    report_.solve_ms += ms_between(tf, now_());
   }
 
   // Learn the cost of a sample for the next budget decision.

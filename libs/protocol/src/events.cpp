@@ -53,14 +53,14 @@ std::variant<ObjectPoseEvent, ParseError> object_pose_from(const std::vector<Tok
   e.q = a.vector<4>("q", "qw,qx,qy,qz");
   e.cov = a.vector<36>("cov", "(6x6 row-major)");
   e.quality = a.number("quality");
-  e.status = static_cast<TrackStatus>(a.word("status", {"tracking", "degraded", "lost"}));
+  e.status = static_cast<TrackStatus>(a.word("status", {"tracking", "degraded", "lost", "failed"}));
   if (!a.ok()) return a.error();
   return e;
 }
 
 std::variant<SystemStatusEvent, ParseError> system_status_from(const std::vector<Token>& tokens) {
   Args a("SystemStatus", std::vector<Token>(tokens.begin() + 1, tokens.end()));
-  a.check_keys({"frame", "cycle_ms", "features_found", "features_used", "outliers", "overruns"}, 0, true);
+  a.check_keys({"frame", "cycle_ms", "features_found", "features_used", "outliers", "overruns", "failed"}, 0, true);
   a.require({"frame", "cycle_ms", "features_found", "features_used", "outliers", "overruns"});
   SystemStatusEvent e;
   e.frame = a.whole("frame");
@@ -69,6 +69,7 @@ std::variant<SystemStatusEvent, ParseError> system_status_from(const std::vector
   e.features_used = a.whole("features_used");
   e.outliers = a.whole("outliers");
   e.overruns = a.whole("overruns");
+  if (a.has("failed")) e.failed = a.whole("failed");
   if (!a.ok()) return a.error();
   return e;
 }
@@ -141,7 +142,8 @@ std::string format(const ObjectPoseEvent& e) {
 std::string format(const SystemStatusEvent& e) {
   return "SystemStatus frame=" + std::to_string(e.frame) + " cycle_ms=" + format_number(e.cycle_ms) +
          " features_found=" + std::to_string(e.features_found) + " features_used=" + std::to_string(e.features_used) +
-         " outliers=" + std::to_string(e.outliers) + " overruns=" + std::to_string(e.overruns);
+         " outliers=" + std::to_string(e.outliers) + " overruns=" + std::to_string(e.overruns) +
+         (e.failed > 0 ? " failed=" + std::to_string(e.failed) : std::string());
 }
 
 std::variant<ObjectPoseEvent, ParseError> parse_object_pose(std::string_view line) {

@@ -31,6 +31,7 @@ std::string_view to_string(TrackStatus s) {
     case TrackStatus::kTracking: return "tracking";
     case TrackStatus::kDegraded: return "degraded";
     case TrackStatus::kLost: return "lost";
+    case TrackStatus::kFailed: return "failed";
   }
   return "?";
 }

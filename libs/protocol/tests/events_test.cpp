@@ -63,7 +63,8 @@ TEST(ProtocolEvents, ObjectPoseRoundTripIsBitExact) {
   std::uniform_real_distribution<double> uni(-1.0, 1.0);
   std::uniform_int_distribution<int> expo(-320, 300);
   const double specials[] = {0.0, -0.0, 5e-324, -2.2250738585072014e-308, 1.7976931348623157e308, 1.0 / 3.0, 0.1};
-  const vp::TrackStatus statuses[] = {vp::TrackStatus::kTracking, vp::TrackStatus::kDegraded, vp::TrackStatus::kLost};
+  const vp::TrackStatus statuses[] = {vp::TrackStatus::kTracking, vp::TrackStatus::kDegraded, vp::TrackStatus::kLost,
+                                      vp::TrackStatus::kFailed};
   for (int n = 0; n < 2000; ++n) {
     vp::ObjectPoseEvent e;
     e.object = "obj_" + std::to_string(n);
@@ -79,7 +80,7 @@ TEST(ProtocolEvents, ObjectPoseRoundTripIsBitExact) {
     for (std::size_t i = 0; i < e.cov.size(); ++i)
       e.cov[i] = (i % 7 == 0) ? specials[(n + i) % 7] : uni(rng) * std::pow(10.0, expo(rng));
     e.quality = (n % 11) / 10.0;
-    e.status = statuses[n % 3];
+    e.status = statuses[n % 4];
     const std::string line = vp::format(e);
     const auto back = get_ok(vp::parse_object_pose(line));
     ASSERT_EQ(back.object, e.object);
@@ -100,10 +101,15 @@ TEST(ProtocolEvents, SystemStatusExactTextAndRoundTrip) {
   const std::string line = vp::format(s);
   EXPECT_EQ(line, "SystemStatus frame=41 cycle_ms=12.375 features_found=120 features_used=97 outliers=11 overruns=3");
   EXPECT_EQ(get_ok(vp::parse_system_status(line)), s);
+  s.failed = 2;  // objects whose cycle failed: a trailing key, sent only when there are any
+  EXPECT_EQ(vp::format(s), line + " failed=2");
+  EXPECT_EQ(get_ok(vp::parse_system_status(vp::format(s))), s);
+  s.failed = 0;
   std::mt19937 rng(7);
   std::uniform_real_distribution<double> ms(0.0, 100.0);
   for (int n = 0; n < 500; ++n) {
-    vp::SystemStatusEvent e{static_cast<std::uint64_t>(n), ms(rng), rng() % 1000u, rng() % 500u, rng() % 50u, rng()};
+    vp::SystemStatusEvent e{static_cast<std::uint64_t>(n), ms(rng), rng() % 1000u, rng() % 500u, rng() % 50u, rng(),
+                            n % 5 == 0 ? rng() % 3u : 0u};
     const auto back = get_ok(vp::parse_system_status(vp::format(e)));
     ASSERT_EQ(back, e);
     ASSERT_TRUE(same_bits(back.cycle_ms, e.cycle_ms));

@@ -8,11 +8,12 @@
 
 #include <fmt/format.h>
 
+#include "v4r/server/http_request.hpp"
+
 namespace v4r::server {
 
 namespace {
 
-constexpr std::size_t kMaxHeadBytes = 8192;
 constexpr std::chrono::seconds kHeadTimeout{10};
 constexpr std::chrono::seconds kWriteTimeout{10};
 constexpr std::chrono::milliseconds kRepeatInterval{500};
@@ -91,16 +92,14 @@ class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
       close();
       return;
     }
-    std::istream is(&head_);
-    std::string method, target, version;
-    is >> method >> target >> version;
-    if (method != "GET" && method != "HEAD") return respond("405 Method Not Allowed", "text/plain", "GET only\n");
-    std::string query;
-    if (const auto q = target.find('?'); q != std::string::npos) {
-      query = target.substr(q + 1);
-      target.resize(q);
-    }
-    if (!monitor_.authorised(query)) return respond("401 Unauthorized", "text/plain", "add ?token=SECRET to the address\n");
+    const auto data = head_.data();
+    const std::string head(asio::buffers_begin(data), asio::buffers_end(data));
+    auto req = parse_http_request(head);
+    if (!req) return respond("400 Bad Request", "text/plain", req.error().message + "\n");
+    if (req->method != "GET" && req->method != "HEAD")
+      return respond("405 Method Not Allowed", "text/plain", "GET only\n");
+    const std::string& target = req->path;
+    if (!monitor_.authorised(req->query)) return respond("401 Unauthorized", "text/plain", "add ?token=SECRET to the address\n");
     if (target == "/" || target == "/index.html") return respond("200 OK", "text/html; charset=utf-8", kPage);
     if (target == "/status.json") return respond("200 OK", "application/json", monitor_.status_json());
     if (target == "/stream.mjpg") return start_stream();
@@ -175,7 +174,7 @@ class HttpConnection : public std::enable_shared_from_this<HttpConnection> {
   asio::steady_timer timer_;   // deadline of the current read or write
   asio::steady_timer repeat_;  // repeats the newest image while no new one comes
   HttpMonitor& monitor_;
-  asio::streambuf head_{kMaxHeadBytes};
+  asio::streambuf head_{kMaxHttpHeadBytes};
   std::string text_, part_, tail_;
   std::array<asio::const_buffer, 3> buffers_;
   SharedLine pending_, sending_;
@@ -193,24 +192,7 @@ HttpMonitor::~HttpMonitor() = default;
 void HttpMonitor::start() { accept(); }
 
 bool HttpMonitor::authorised(std::string_view query) const {
-  if (token_.empty()) return true;
-  // Look for token=<value> among the &-separated parameters (no percent-decoding: tokens are
-  // expected to be URL-safe), compared in time independent of the content.
-  std::size_t i = 0;
-  while (i <= query.size()) {
-    std::size_t j = query.find('&', i);
-    if (j == std::string_view::npos) j = query.size();
-    const std::string_view kv = query.substr(i, j - i);
-    if (kv.starts_with("token=")) {
-      const std::string_view v = kv.substr(6);
-      unsigned char diff = v.size() == token_.size() ? 0 : 1;
-      for (std::size_t k = 0; k < std::max(v.size(), token_.size()); ++k)
-        diff |= static_cast<unsigned char>((k < v.size() ? v[k] : 0) ^ (k < token_.size() ? token_[k] : 0));
-      if (diff == 0) return true;
-    }
-    i = j + 1;
-  }
-  return false;
+  return query_has_token(query, token_);
 }
 
 void HttpMonitor::stop() {

@@ -12,23 +12,25 @@ bool Outbox::push_reply(SharedLine line) {
 void Outbox::put_event(const std::string& key, SharedLine line) {
   for (auto& [k, slot] : slots_) {
     if (k != key) continue;
-    if (slot) {
+    if (slot.size() >= event_depth_) {
+      slot.pop_front();
       ++replaced_;
     } else {
       ++pending_events_;
     }
-    slot = std::move(line);
+    slot.push_back(std::move(line));
     return;
   }
-  slots_.emplace_back(key, std::move(line));
+  slots_.emplace_back(key, std::deque<SharedLine>{});
+  slots_.back().second.push_back(std::move(line));
   ++pending_events_;
 }
 
 void Outbox::drop_events(const std::string& prefix) {
   for (auto& [k, slot] : slots_) {
-    if (slot && k.starts_with(prefix)) {
-      slot.reset();
-      --pending_events_;
+    if (!slot.empty() && k.starts_with(prefix)) {
+      pending_events_ -= slot.size();
+      slot.clear();
     }
   }
 }
@@ -39,10 +41,16 @@ std::size_t Outbox::take(std::vector<SharedLine>& out) {
     out.push_back(std::move(replies_.front()));
     replies_.pop_front();
   }
-  for (auto& [k, slot] : slots_) {
-    if (slot) out.push_back(std::move(slot));
-    slot.reset();
+  for (std::size_t round = 0;; ++round) {
+    bool any = false;
+    for (auto& [k, slot] : slots_) {
+      if (round >= slot.size()) continue;
+      out.push_back(std::move(slot[round]));
+      any = true;
+    }
+    if (!any) break;
   }
+  for (auto& [k, slot] : slots_) slot.clear();
   pending_events_ = 0;
   // Keys of removed objects would pile up: keep the slot table small.
   if (slots_.size() > 64) slots_.clear();

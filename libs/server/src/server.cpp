@@ -62,6 +62,7 @@ struct Server::Impl final : SessionHost {
   // The io_context is declared first so that it is destroyed last (handlers own sessions).
   asio::io_context io_{1};
   ServerOptions opt_;
+  PathPolicy data_dirs_;
   asio::ip::tcp::acceptor acceptor_{io_};
   asio::steady_timer accept_retry_{io_};
   asio::signal_set signals_{io_};
@@ -79,7 +80,8 @@ struct Server::Impl final : SessionHost {
   bool encoding_ = false;
 
   std::atomic<std::size_t> clients_{0};
-  std::atomic<std::uint64_t> connections_{0}, refused_{0}, slow_{0};
+  std::atomic<std::uint64_t> connections_{0}, refused_{0}, slow_{0}, net_faults_{0};
+  std::atomic<std::size_t> peak_lines_{0}, peak_bytes_{0};
   std::atomic<bool> stopping_{false};
   std::atomic<std::size_t> payload_bytes_{0};
   bool shut_down_ = false;  // network thread
@@ -95,9 +97,16 @@ struct Server::Impl final : SessionHost {
   TrackingService& service() override { return *service_; }
   Worker& loader() override { return loader_; }
   const ServerOptions& options() const override { return opt_; }
+  const PathPolicy& data_dirs() const override { return data_dirs_; }
 
-  void session_closed(const std::shared_ptr<Session>& s, bool slow) override {
-    if (slow) ++slow_;
+  void dropping_slow_client() override { ++slow_; }
+  void note_write(std::size_t lines, std::size_t bytes) override {
+    // Network thread only: plain max.
+    if (lines > peak_lines_) peak_lines_ = lines;
+    if (bytes > peak_bytes_) peak_bytes_ = bytes;
+  }
+
+  void session_closed(const std::shared_ptr<Session>& s) override {
     // Deferred: the session may be closing from inside a loop over sessions_.
     asio::post(io_, [this, s] {
       sessions_.erase(s);
@@ -173,7 +182,12 @@ struct Server::Impl final : SessionHost {
         }
       }
       std::vector<uchar> buf;
-      if (!cv::imencode(".jpg", *img, buf, {cv::IMWRITE_JPEG_QUALITY, kJpegQuality})) continue;
+      try {
+        if (!cv::imencode(".jpg", *img, buf, {cv::IMWRITE_JPEG_QUALITY, kJpegQuality})) continue;
+      } catch (const std::exception& e) {  // an OpenCV error costs this picture only
+        V4R_LOG_ERROR("v4r serve: monitor picture not encoded: {}", e.what());
+        continue;
+      }
       auto jpeg = std::make_shared<const std::string>(buf.begin(), buf.end());
       asio::post(io_, [this, jpeg = std::move(jpeg)] {
         if (http_ && !shut_down_) http_->publish_jpeg(jpeg);
@@ -222,6 +236,29 @@ struct Server::Impl final : SessionHost {
     }
   }
 
+  /// The network thread. A handler that throws (a bug, out of memory) is logged and the loop goes
+  /// on: one client's request must not end every client's session. Only the shutdown itself
+  /// failing ends the thread, logged.
+  void serve() {
+    for (;;) {
+      try {
+        io_.run();
+        break;
+      } catch (const std::exception& e) {
+        const std::uint64_t n = ++net_faults_;
+        if (n <= 10 || n % 1000 == 0) V4R_LOG_ERROR("v4r serve: network handler failed: {}", e.what());
+      } catch (...) {
+        const std::uint64_t n = ++net_faults_;
+        if (n <= 10 || n % 1000 == 0) V4R_LOG_ERROR("v4r serve: network handler failed: unknown exception");
+      }
+    }
+    try {
+      shutdown();
+    } catch (const std::exception& e) {
+      V4R_LOG_ERROR("v4r serve: shutdown: {}", e.what());
+    }
+  }
+
   /// Network thread: closes the ports and every connection, stops the other threads.
   void shutdown() {
     if (shut_down_) return;
@@ -256,16 +293,28 @@ Expected<std::unique_ptr<Server>> Server::create(ServerOptions opt) {
   if (!addr.is_loopback() && opt.token.empty())
     return make_error(fmt::format("--bind {}: listening beyond loopback requires --token SECRET", opt.bind));
 
+  auto data = PathPolicy::create(opt.data_dirs.empty() ? std::vector<std::string>{"."} : opt.data_dirs, "--data-dir");
+  if (!data) return data.error();
+  PathPolicy logs;
+  if (!opt.log_dir.empty()) {
+    auto l = PathPolicy::create({opt.log_dir}, "--log-dir");
+    if (!l) return l.error();
+    logs = std::move(*l);
+  }
+
   auto source = io::FrameSource::open(opt.input);
   if (!source) return source.error();
   auto impl = std::make_unique<Impl>();
   impl->opt_ = opt;
+  impl->data_dirs_ = std::move(*data);
   ServiceOptions so;
   so.camera = opt.camera;
   so.fps = opt.fps;
   so.paused = opt.paused;
   so.params = opt.params;
   so.default_log_file = opt.log_file;
+  so.log_dirs = std::move(logs);
+  so.object_hook = opt.object_hook;
   impl->service_ = std::make_unique<TrackingService>(std::move(so), std::move(*source));
   if (auto r = impl->service_->open(); !r) return r.error();
 
@@ -293,18 +342,14 @@ std::uint16_t Server::http_port() const { return impl_->http_ ? impl_->http_->po
 int Server::run() {
   if (impl_->stopping_) return 0;
   impl_->begin();
-  impl_->io_.run();
-  impl_->shutdown();
+  impl_->serve();
   return 0;
 }
 
 void Server::start() {
   if (impl_->io_thread_.joinable() || impl_->stopping_) return;
   impl_->begin();
-  impl_->io_thread_ = std::jthread([this] {
-    impl_->io_.run();
-    impl_->shutdown();
-  });
+  impl_->io_thread_ = std::jthread([this] { impl_->serve(); });
 }
 
 void Server::stop() {
@@ -321,6 +366,11 @@ ServerStats Server::stats() const {
   s.connections = impl_->connections_.load();
   s.refused = impl_->refused_.load();
   s.disconnected_slow = impl_->slow_.load();
+  s.objects_failed = impl_->service_->objects_failed();
+  s.faults = impl_->service_->faults() + impl_->net_faults_.load();
+  s.tracking_alive = impl_->service_->healthy();
+  s.peak_write_lines = impl_->peak_lines_.load();
+  s.peak_write_bytes = impl_->peak_bytes_.load();
   s.paused = impl_->service_->paused();
   s.end_of_input = impl_->service_->end_of_input();
   return s;

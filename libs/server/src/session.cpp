@@ -50,7 +50,7 @@ Session::Session(asio::ip::tcp::socket socket, SessionHost& host)
       socket_(std::move(socket)),
       write_timer_(host.io()),
       auth_timer_(host.io()),
-      outbox_(host.options().max_replies) {
+      outbox_(host.options().max_replies, host.options().event_backlog) {
   asio::error_code ignored;
   socket_.set_option(asio::ip::tcp::no_delay(true), ignored);
   auth_required_ = !host.options().token.empty();
@@ -172,7 +172,12 @@ void Session::handle_payload(std::string bytes) {
   TrackingService& service = host_.service();
   SessionHost& host = host_;
   host_.loader().post([cmd = std::move(cmd), text = std::move(bytes), done = std::move(done), &service, &host]() mutable {
-    auto m = load_model_text(text, cmd.format, fmt::format("<AddModel object={}>", cmd.object));
+    Expected<std::shared_ptr<const model::Model>> m = make_error("not loaded");
+    try {
+      m = load_model_text(text, cmd.format, fmt::format("<AddModel object={}>", cmd.object), host.data_dirs());
+    } catch (const std::exception& e) {  // e.g. out of memory in a parser: this request fails, the server goes on
+      m = Unexpected{Error{fmt::format("<AddModel object={}>: {}", cmd.object, e.what()), {}, 0, 0, std::string(code::kInternal)}};
+    }
     std::string().swap(text);
     host.release_payload(cmd.bytes);
     if (!m) {
@@ -223,8 +228,14 @@ void Session::handle_command(const protocol::Command& cmd) {
           [&](const protocol::AddModelPath& p) {
             auto done = deferred_reply();
             TrackingService& service = host_.service();
-            host_.loader().post([p, done = std::move(done), &service]() mutable {
-              auto m = load_model_path(p.path, p.format);
+            const PathPolicy& data = host_.data_dirs();
+            host_.loader().post([p, done = std::move(done), &service, &data]() mutable {
+              Expected<std::shared_ptr<const model::Model>> m = make_error("not loaded");
+              try {
+                m = load_model_path(p.path, p.format, data);
+              } catch (const std::exception& e) {
+                m = Unexpected{Error{fmt::format("{}: {}", p.path, e.what()), {}, 0, 0, std::string(code::kInternal)}};
+              }
               if (!m) {
                 done(model_error(m.error()));
                 return;
@@ -241,19 +252,21 @@ void Session::reply(std::string line) {
   if (closed_) return;
   line.push_back('\n');
   if (!outbox_.push_reply(std::make_shared<const std::string>(std::move(line)))) {
-    overflow();
+    drop_slow("too many unread replies: disconnecting");
     return;
   }
   flush();
 }
 
-void Session::overflow() {
+void Session::drop_slow(std::string_view why) {
   if (closing_) return;
-  // The client sends commands but does not read the replies: drop it, with a last word.
+  // The client does not read (its replies pile up, or a write made no progress for
+  // write_stall_timeout): drop it, with a last word it gets if it reads within close_grace.
   slow_ = true;
   closing_ = true;
-  outbox_ = Outbox(host_.options().max_replies);
-  std::string last = format_err("?", code::kBusy, "too many unread replies: disconnecting") + "\n";
+  host_.dropping_slow_client();
+  outbox_ = Outbox(host_.options().max_replies, 1);
+  std::string last = format_err("?", code::kBusy, why) + "\n";
   outbox_.push_reply(std::make_shared<const std::string>(std::move(last)));
   if (writing_) {
     arm_write_timer(host_.options().close_grace);
@@ -293,7 +306,12 @@ void Session::flush() {
     return;
   }
   buffers_.clear();
-  for (const SharedLine& l : sending_) buffers_.emplace_back(asio::buffer(*l));
+  std::size_t bytes = 0;
+  for (const SharedLine& l : sending_) {
+    buffers_.emplace_back(asio::buffer(*l));
+    bytes += l->size();
+  }
+  host_.note_write(sending_.size(), bytes);
   writing_ = true;
   const std::uint64_t gen = ++write_gen_;
   arm_write_timer(closing_ ? host_.options().close_grace : host_.options().write_stall_timeout);
@@ -307,7 +325,12 @@ void Session::arm_write_timer(std::chrono::milliseconds d) {
   write_timer_.async_wait([w = weak_from_this(), gen = write_gen_](const asio::error_code& ec) {
     auto s = w.lock();
     if (ec || !s || s->closed_ || !s->writing_ || s->write_gen_ != gen) return;
-    // The client has not taken this write for the whole deadline.
+    if (!s->closing_) {
+      // The client has not taken this write for the whole deadline: it does not read.
+      s->drop_slow("not reading: no write progress for the write stall timeout; disconnecting");
+      return;
+    }
+    // Closing, and the last words were not taken within close_grace either.
     s->slow_ = true;
     s->close();
   });
@@ -366,7 +389,7 @@ void Session::close() {
 void Session::release() {
   if (released_) return;
   released_ = true;
-  host_.session_closed(shared_from_this(), slow_);
+  host_.session_closed(shared_from_this());
 }
 
 }  // namespace v4r::server

@@ -32,8 +32,14 @@ class SessionHost {
   virtual TrackingService& service() = 0;
   virtual Worker& loader() = 0;
   virtual const ServerOptions& options() const = 0;
-  /// Called once when the session closed; `slow`: dropped for not reading.
-  virtual void session_closed(const std::shared_ptr<Session>& s, bool slow) = 0;
+  /// The folders `AddModel path=` and `.cao` includes may read.
+  virtual const PathPolicy& data_dirs() const = 0;
+  /// Called once when the session closed.
+  virtual void session_closed(const std::shared_ptr<Session>& s) = 0;
+  /// Called once when the session decided to drop its client for not reading (before the close).
+  virtual void dropping_slow_client() = 0;
+  /// Called before each write with what it holds: the outbox's high-water mark.
+  virtual void note_write(std::size_t lines, std::size_t bytes) = 0;
   /// Reserves memory for an inline model of `bytes` from the server-wide budget (false: over it).
   virtual bool reserve_payload(std::size_t bytes) = 0;
   /// Returns a reservation (any thread).
@@ -76,7 +82,7 @@ class Session : public std::enable_shared_from_this<Session> {
   TrackingService::ReplyFn deferred_reply();
   void finish_command(std::string line);
   void reply(std::string line);
-  void overflow();
+  void drop_slow(std::string_view why);
   void flush();
   void on_written(const asio::error_code& ec, std::uint64_t gen);
   void arm_write_timer(std::chrono::milliseconds d);

@@ -6,6 +6,9 @@
 
 #include <fmt/format.h>
 #include <opencv2/imgproc.hpp>
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include "v4r/core/log.hpp"
 #include "v4r/pipeline/params.hpp"
@@ -80,6 +83,7 @@ TrackingService::TrackingService(ServiceOptions opt, std::unique_ptr<io::FrameSo
       cycle_(params_) {
   scene_.add_camera(scene::Camera{"camera", opt_.camera, geometry::SE3()});
   paused_ = opt_.paused;
+  if (opt_.object_hook) cycle_.set_object_hook([hook = opt_.object_hook](const scene::Object& o) { hook(o.name); });
 }
 
 TrackingService::~TrackingService() {
@@ -112,15 +116,63 @@ void TrackingService::stop() {
   thread_.join();
 }
 
+namespace {
+
+const char* request_name(const TrackingService::Request& r) {
+  if (std::holds_alternative<ModelReady>(r)) return "AddModel";
+  return protocol::command_name(std::get<protocol::Command>(r)).data();
+}
+
+/// Logs the first faults of a kind and then every 1000th, so that a fault in every frame does
+/// not flood the log.
+bool worth_logging(std::uint64_t n) { return n <= 10 || n % 1000 == 0; }
+
+}  // namespace
+
 void TrackingService::submit(Request request, ReplyFn done) {
+  bool queued = false;
   {
     std::scoped_lock lock(mutex_);
-    queue_.push_back(Pending{std::move(request), std::move(done)});
+    if (healthy_) {
+      queue_.push_back(Pending{std::move(request), std::move(done)});
+      queued = true;
+    }
+  }
+  if (!queued) {
+    // The tracking thread has stopped: nobody else will answer.
+    if (done) done(format_err(request_name(request), code::kInternal, "the tracking thread has stopped (see the server log)"));
+    return;
   }
   wake_.notify_one();
 }
 
 void TrackingService::run(std::stop_token st) {
+  // Top-level handler: whatever escapes the per-frame and per-command handlers below ends this
+  // thread cleanly (logged, every waiting command answered) instead of std::terminate.
+  try {
+    loop(st);
+  } catch (const std::exception& e) {
+    V4R_LOG_ERROR("v4r serve: the tracking thread stopped: {}", e.what());
+    healthy_ = false;
+  } catch (...) {
+    V4R_LOG_ERROR("v4r serve: the tracking thread stopped: unknown exception");
+    healthy_ = false;
+  }
+  if (healthy_) return;
+  std::deque<Pending> left;
+  {
+    std::scoped_lock lock(mutex_);
+    left.swap(queue_);
+  }
+  for (Pending& p : left) {
+    try {
+      if (p.done) p.done(format_err(request_name(p.request), code::kInternal, "the tracking thread has stopped"));
+    } catch (...) {  // nothing more can be done for this client
+    }
+  }
+}
+
+void TrackingService::loop(std::stop_token st) {
   const bool paced = opt_.fps > 0.0;
   const auto period = paced ? std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(1.0 / opt_.fps))
                             : Clock::duration::zero();
@@ -143,14 +195,26 @@ void TrackingService::run(std::stop_token st) {
         if (wake_.wait_until(lock, st, due_, [&] { return !queue_.empty(); }) || st.stop_requested()) continue;
       }
     }
-    rebuild_models();
     const Clock::time_point released = Clock::now();
-    process_frame(released);
+    frame_cycle(released);
     have_frame_ = false;
     if (paced) {
       due_ += period;
       if (due_ + period < released) due_ = released;  // far behind (slow cycle): do not burst
     }
+  }
+}
+
+void TrackingService::frame_cycle(Clock::time_point released) {
+  // A fault outside any one object's cycle (out of memory, a bug in the event code) costs this
+  // frame, not the service: the frame is skipped and the next one is processed as usual.
+  try {
+    rebuild_models();
+    process_frame(released);
+  } catch (const std::exception& e) {
+    if (worth_logging(++faults_)) V4R_LOG_ERROR("v4r serve: frame {} skipped: {}", next_frame_ - 1, e.what());
+  } catch (...) {
+    if (worth_logging(++faults_)) V4R_LOG_ERROR("v4r serve: frame {} skipped: unknown exception", next_frame_ - 1);
   }
 }
 
@@ -183,7 +247,14 @@ void TrackingService::apply_pending() {
       p = std::move(queue_.front());
       queue_.pop_front();
     }
-    std::string reply = apply(p.request);
+    std::string reply;
+    try {
+      reply = apply(p.request);
+    } catch (const std::exception& e) {
+      ++faults_;
+      V4R_LOG_ERROR("v4r serve: {} failed: {}", request_name(p.request), e.what());
+      reply = format_err(request_name(p.request), code::kInternal, e.what());
+    }
     if (p.done) p.done(std::move(reply));
   }
 }
@@ -242,9 +313,10 @@ std::string TrackingService::set_model(ObjectEntry& e, std::shared_ptr<const mod
     if (e.has_pose) scene_.set_pose(*added, e.pose);
   }
   e.model = m;
-  tracked_ = static_cast<int>(std::count_if(scene_.objects().begin(), scene_.objects().end(), [](const scene::Object& o) {
-    return o.status != scene::TrackStatus::kUninitialised;
-  }));
+  e.failed = false;  // a new model is a fresh start
+  e.error.clear();
+  e.hold_stamp = -1.0;
+  count_objects();
   const std::size_t j = m ? m->junctions().size() : 0, l = m ? m->lines().size() : 0, a = m ? m->arcs().size() : 0;
   return format_ok(cmd, fmt::format("object={} junctions={} lines={} circles={}", e.name, j, l, a));
 }
@@ -264,9 +336,7 @@ std::string TrackingService::on(const protocol::RemoveObject& c) {
   if (it == objects_.end()) return format_err("RemoveObject", code::kUnknownObject, fmt::format("no object '{}'", c.name));
   if (const long idx = scene_.find_object(c.name); idx >= 0) scene_.objects().erase(scene_.objects().begin() + idx);
   objects_.erase(it);
-  tracked_ = static_cast<int>(std::count_if(scene_.objects().begin(), scene_.objects().end(), [](const scene::Object& o) {
-    return o.status != scene::TrackStatus::kUninitialised;
-  }));
+  count_objects();
   return format_ok("RemoveObject", "name=" + c.name);
 }
 
@@ -360,11 +430,17 @@ std::string TrackingService::on(const protocol::SetPose& c) {
   if (c.t[2] <= 0.0) return format_err("SetPose", code::kOutOfRange, "the pose puts the object behind the camera (tz <= 0)");
   e->pose = geometry::SE3::from_rvec(vec(c.t), vec(c.r));
   e->has_pose = true;
+  if (e->failed && e->model) {
+    // A failed object starts again from the new pose.
+    auto added = scene_.add_object(e->name, e->model);
+    if (!added) return format_err("SetPose", code::kInternal, added.error().to_string());
+    e->failed = false;
+    e->error.clear();
+    e->hold_stamp = -1.0;
+  }
   if (const long idx = scene_.find_object(c.object); idx >= 0) {
     scene_.set_pose(static_cast<std::size_t>(idx), e->pose);
-    tracked_ = static_cast<int>(std::count_if(scene_.objects().begin(), scene_.objects().end(), [](const scene::Object& o) {
-      return o.status != scene::TrackStatus::kUninitialised;
-    }));
+    count_objects();
   }
   return format_ok("SetPose", fmt::format("object={} frame={}", c.object, next_frame_));
 }
@@ -425,21 +501,34 @@ std::string TrackingService::on(const protocol::Log& c) {
     log_ = nullptr;
   }
   if (!c.on) return format_ok("Log", "off");
-  const std::string path = c.file.empty() ? opt_.default_log_file : c.file;
-  // A client names the file: never truncate anything but an earlier cycle log.
-  if (std::FILE* old = std::fopen(path.c_str(), "rb")) {
-    char first[sizeof kLogHeader] = {};
-    const std::size_t n = std::fread(first, 1, sizeof kLogHeader - 1, old);
-    std::fclose(old);
-    if (n > 0 && std::string_view(first, n) != std::string_view(kLogHeader).substr(0, n))
-      return format_err("Log", code::kIoError,
-                        fmt::format("'{}' exists and is not a v4r cycle log: not overwritten", path));
+  std::string path = opt_.default_log_file;
+  if (!c.file.empty()) {
+    // A client names the file: only inside the operator's --log-dir, never through a symlink.
+    auto r = opt_.log_dirs.resolve_write(c.file);
+    if (!r) return format_err("Log", r.error().field, r.error().message);
+    path = r->string();
   }
-  log_ = std::fopen(path.c_str(), "w");
-  if (!log_) return format_err("Log", code::kIoError, fmt::format("cannot open '{}' for writing", path));
+  const std::string& shown = c.file.empty() ? path : c.file;
+  // O_NOFOLLOW: a symlink put in the file's place after the check is not followed.
+  const int fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_NOFOLLOW | O_CLOEXEC, 0644);
+  if (fd < 0) return format_err("Log", code::kIoError, fmt::format("cannot open '{}' for writing", shown));
+  // Never truncate anything but an empty file or an earlier cycle log.
+  char first[sizeof kLogHeader] = {};
+  const ssize_t n = ::read(fd, first, sizeof kLogHeader - 1);
+  struct stat st {};
+  if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode) ||
+      (n > 0 && std::string_view(first, static_cast<std::size_t>(n)) !=
+                    std::string_view(kLogHeader).substr(0, static_cast<std::size_t>(n)))) {
+    ::close(fd);
+    return format_err("Log", code::kIoError, fmt::format("'{}' exists and is not a v4r cycle log: not overwritten", shown));
+  }
+  if (::ftruncate(fd, 0) != 0 || ::lseek(fd, 0, SEEK_SET) != 0 || !(log_ = ::fdopen(fd, "w"))) {
+    ::close(fd);
+    return format_err("Log", code::kIoError, fmt::format("cannot open '{}' for writing", shown));
+  }
   std::fputs(kLogHeader, log_);
   std::fflush(log_);
-  return format_ok("Log", "on file=" + format_value(path));
+  return format_ok("Log", "on file=" + format_value(shown));
 }
 
 void TrackingService::process_frame(Clock::time_point released) {
@@ -467,9 +556,9 @@ void TrackingService::process_frame(Clock::time_point released) {
   st.cycle_ms = rep.cycle_ms;
   st.overruns = static_cast<std::uint64_t>(std::max<std::int64_t>(0, rep.overruns));
   int visible = 0, tracked = 0, found_obs = 0, used_obs = 0, outlier_obs = 0;
-  const auto& objs = scene_.objects();
+  auto& objs = scene_.objects();
   for (std::size_t i = 0; i < objs.size(); ++i) {
-    const scene::Object& o = objs[i];
+    scene::Object& o = objs[i];
     if (o.status == scene::TrackStatus::kUninitialised) continue;
     ++tracked;
     const pipeline::ObjectReport& r = rep.objects[i];
@@ -497,15 +586,42 @@ void TrackingService::process_frame(Clock::time_point released) {
     const Eigen::Quaterniond& q = T_cam_obj.quaternion();
     p.t = {t.x(), t.y(), t.z()};
     p.q = {q.w(), q.x(), q.y(), q.z()};
+    const geometry::Matrix6d cov = published_covariance(find(o.name), o, rep.stamp_s);
     for (int rr = 0; rr < 6; ++rr)
-      for (int cc = 0; cc < 6; ++cc) p.cov[static_cast<std::size_t>(rr * 6 + cc)] = o.covariance(rr, cc);
+      for (int cc = 0; cc < 6; ++cc) p.cov[static_cast<std::size_t>(rr * 6 + cc)] = cov(rr, cc);
     p.quality = std::isfinite(o.quality) ? std::clamp(o.quality, 0.0, 1.0) : 0.0;
     p.status = to_protocol(o.status);
     ev->pose_lines.push_back(shared_line(protocol::format(p)));
     ev->poses.push_back(std::move(p));
   }
+  // Objects whose cycle threw this frame leave the scene (the others went on, see VisionCycle).
+  for (std::size_t i = objs.size(); i-- > 0;)
+    if (i < rep.objects.size() && rep.objects[i].failed) object_failed(i, rep.objects[i].error, rep.stamp_s);
+  // Failed objects are reported, with the pose they had and a covariance that keeps growing.
+  for (ObjectEntry& e : objects_) {
+    if (!e.failed) continue;
+    ++st.failed;
+    protocol::ObjectPoseEvent p;
+    p.object = e.name;
+    p.frame = static_cast<std::uint64_t>(index);
+    p.stamp = rep.stamp_s;
+    const Eigen::Vector3d& t = e.held_pose.translation();
+    const Eigen::Quaterniond& q = e.held_pose.quaternion();
+    p.t = {t.x(), t.y(), t.z()};
+    p.q = {q.w(), q.x(), q.y(), q.z()};
+    filter::PoseFilter f = e.hold;
+    f.predict(std::max(0.0, rep.stamp_s - e.hold_stamp));
+    const geometry::Matrix6d cov = f.pose_covariance();
+    for (int rr = 0; rr < 6; ++rr)
+      for (int cc = 0; cc < 6; ++cc) p.cov[static_cast<std::size_t>(rr * 6 + cc)] = cov(rr, cc);
+    p.quality = 0.0;
+    p.status = protocol::TrackStatus::kFailed;
+    ev->pose_lines.push_back(shared_line(protocol::format(p)));
+    ev->poses.push_back(std::move(p));
+  }
   st.features_found = st.features_used + st.outliers;
   tracked_ = tracked;
+  failed_ = static_cast<int>(st.failed);
   ev->status_line = shared_line(protocol::format(st));
   if (on_frame_) on_frame_(ev);
   frames_ = index + 1;
@@ -519,7 +635,12 @@ void TrackingService::process_frame(Clock::time_point released) {
                  static_cast<unsigned long long>(st.overruns));
     std::fflush(log_);
   }
-  if (display_ && on_overlay_) {
+  if (display_ && on_overlay_) publish_overlay(rep, index);
+}
+
+void TrackingService::publish_overlay(const pipeline::CycleReport& rep, std::int64_t index) {
+  // The live view is a convenience: a failure to draw it (OpenCV, memory) costs this picture only.
+  try {
     auto vis = std::make_shared<cv::Mat>();
     if (frame_.channels() == 3) {
       frame_.copyTo(*vis);
@@ -528,7 +649,51 @@ void TrackingService::process_frame(Clock::time_point released) {
     }
     viz::draw_overlay(*vis, scene_, cycle_, 0, rep);
     on_overlay_(std::move(vis), index);
+  } catch (const std::exception& e) {
+    if (worth_logging(++faults_)) V4R_LOG_ERROR("v4r serve: frame {}: no overlay: {}", index, e.what());
   }
+}
+
+void TrackingService::object_failed(std::size_t i, const std::string& error, double stamp) {
+  scene::Object& o = scene_.objects()[i];
+  if (ObjectEntry* e = find(o.name)) {
+    e->failed = true;
+    e->error = error;
+    e->held_pose = scene_.cameras()[0].T_ref_cam.inverse() * o.T_ref_obj;
+    e->hold = o.filter;
+    if (!e->hold.initialised()) e->hold.reset(o.T_ref_obj, o.covariance);
+    e->hold_stamp = stamp;
+  }
+  V4R_LOG_ERROR("v4r serve: object {}: its cycle failed at {:.3f} s: {}; it is reported as failed until SetPose or "
+                "AddModel, the other objects keep running",
+                o.name, stamp, error);
+  scene_.objects().erase(scene_.objects().begin() + static_cast<std::ptrdiff_t>(i));
+}
+
+void TrackingService::count_objects() {
+  tracked_ = static_cast<int>(std::count_if(scene_.objects().begin(), scene_.objects().end(), [](const scene::Object& o) {
+    return o.status != scene::TrackStatus::kUninitialised;
+  }));
+  failed_ = static_cast<int>(std::count_if(objects_.begin(), objects_.end(), [](const ObjectEntry& e) { return e.failed; }));
+}
+
+geometry::Matrix6d TrackingService::published_covariance(ObjectEntry* e, const scene::Object& o, double stamp) {
+  if (o.status != scene::TrackStatus::kLost) {
+    if (e) e->hold_stamp = -1.0;
+    return o.covariance;
+  }
+  // Lost: the pose is held (a prediction), so is its uncertainty, which grows with time; the
+  // covariance of the last good measurement would claim a precision the pose no longer has.
+  if (params_.use_filter && o.filter.initialised()) return o.filter.pose_covariance();
+  if (!e) return o.covariance;
+  if (e->hold_stamp < 0.0) {  // the filter does not run: predict from the start of the hold
+    e->hold = filter::PoseFilter(o.filter.params());
+    e->hold.reset(o.T_ref_obj, o.covariance);
+    e->hold_stamp = stamp;
+  }
+  filter::PoseFilter f = e->hold;
+  f.predict(std::max(0.0, stamp - e->hold_stamp));
+  return f.pose_covariance();
 }
 
 }  // namespace v4r::server

@@ -412,14 +412,17 @@ TEST(Server, QuitClosesOnlyThatClientAndMaxClientsRefusesMore) {
 
 TEST(Server, LogWritesOneCsvRowPerCycle) {
   const Sequence& seq = ship_sequence();
-  auto srv = start_server(test_options(seq, 0.0));  // as fast as it goes
+  ServerOptions o = test_options(seq, 0.0);  // as fast as it goes
+  o.log_dir = seq.dir.string();             // `Log on file=` writes only there
+  auto srv = start_server(o);
   ASSERT_TRUE(srv);
   Client c = connect(*srv);
   add_model_inline(c, "ship", seq.cao);
   EXPECT_TRUE(is_ok(ask(c, set_pose("ship", seq.truth[0]))));
   const fs::path csv = seq.dir / "cycles.csv";
   EXPECT_EQ(ask(c, "Log on file=" + csv.string()), "OK Log on file=" + csv.string());
-  EXPECT_TRUE(ask(c, "Log on file=/nonexistent/dir/x.csv").starts_with("ERR Log code=io_error"));
+  EXPECT_TRUE(ask(c, "Log on file=nodir/x.csv").starts_with("ERR Log code=io_error"));
+  EXPECT_TRUE(ask(c, "Log on file=/nonexistent/dir/x.csv").starts_with("ERR Log code=forbidden"));
   // Existing files other than cycle logs are not overwritten.
   EXPECT_TRUE(ask(c, "Log on file=" + (seq.dir / "gt.csv").string()).starts_with("ERR Log code=io_error"));
   EXPECT_GT(fs::file_size(seq.dir / "gt.csv"), 100u);

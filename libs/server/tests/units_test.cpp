@@ -61,6 +61,24 @@ TEST(Outbox, ReplyQueueIsBoundedAndEventsStayBoundedUnderAFlood) {
   EXPECT_EQ(box.events_replaced(), 4u * 999u);
 }
 
+TEST(Outbox, WithADepthABriefBacklogKeepsEveryEventInFrameOrder) {
+  Outbox box(4, 3);
+  for (int f = 0; f < 3; ++f) {
+    box.put_event("P a", line(fmt::format("a{}", f)));
+    box.put_event("S", line(fmt::format("s{}", f)));
+  }
+  std::vector<SharedLine> out;
+  EXPECT_EQ(box.take(out), 6u);
+  EXPECT_EQ(texts(out), (std::vector<std::string>{"a0", "s0", "a1", "s1", "a2", "s2"}));
+  EXPECT_EQ(box.events_replaced(), 0u);
+  // Further behind than the depth: the oldest go, the newest three per key stay.
+  for (int f = 0; f < 10; ++f) box.put_event("P a", line(fmt::format("a{}", f)));
+  out.clear();
+  EXPECT_EQ(box.take(out), 3u);
+  EXPECT_EQ(texts(out), (std::vector<std::string>{"a7", "a8", "a9"}));
+  EXPECT_EQ(box.events_replaced(), 7u);
+}
+
 TEST(Outbox, UnsubscribeDropsOnlyThatTopic) {
   Outbox box(4);
   box.put_event("P a", line("a"));

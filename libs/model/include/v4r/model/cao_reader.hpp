@@ -1,6 +1,7 @@
 // v4r - robust model-based object tracking. MIT licence.
 #pragma once
 
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -8,6 +9,11 @@
 #include "v4r/model/model.hpp"
 
 namespace v4r::model {
+
+/// Decides which files `load(...)` may read (a server reads only inside its data folders): gets
+/// the path an include resolves to and returns the path to read, or an error that becomes the
+/// include's error (its field is kept).
+using IncludeCheck = std::function<Expected<std::string>(const std::string& path)>;
 
 /// \brief Options of the `.cao` reader.
 struct CaoReadOptions {
@@ -18,6 +24,8 @@ struct CaoReadOptions {
   /// least-squares plane's normal) and reported by one warning naming file:line and the offset;
   /// beyond it the face is refused (error with file:line:column).
   double max_off_plane = 0.10;
+  /// Every include is passed through this check (empty: any file may be read).
+  IncludeCheck include_check;
 };
 
 /// \brief Reads a ViSP `.cao` model (version V1): 3-D points, lines (with `name=`), faces from

@@ -2,7 +2,9 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <span>
+#include <string>
 #include <vector>
 
 #include "v4r/core/clock.hpp"
@@ -100,6 +102,10 @@ struct ObjectReport {
   int search_level = 0;    ///< 0: normal windows; > 0 searching wider after a bad frame
   bool measurement_rejected = false;  ///< the solve was refused by the filter gate
   bool prior_used = false;  ///< some directions were held by the prediction (partial observability)
+  /// The object's cycle threw: the object was taken out of tracking (status kUninitialised, so
+  /// later cycles skip it until its pose is set again); `error` says what was thrown.
+  bool failed = false;
+  std::string error;
 };
 
 /// \brief Per-cycle report: per-stage times, budget state and one ObjectReport per object.
@@ -144,6 +150,10 @@ class VisionCycle {
   /// the images in seconds (negative: frame count * frame_interval_s).
   const CycleReport& process(scene::Scene& scene, std::span<const CameraImage> images, double stamp_s = -1.0);
 
+  /// Test seam: called with each tracked object at the start of its measurement. Whatever it
+  /// throws is handled as a fault in that object's cycle (ObjectReport::failed). Empty by default.
+  void set_object_hook(std::function<void(const scene::Object&)> hook) { object_hook_ = std::move(hook); }
+
   /// Edge pixels found in the last cycle, for overlays (pixels, per camera).
   [[nodiscard]] const std::vector<Eigen::Vector2d>& edgels(std::size_t camera) const;
 
@@ -160,8 +170,11 @@ class VisionCycle {
                     ObjectReport& rep);
   void fuse_and_filter(scene::Scene& scene, scene::Object& obj, ObjectReport& rep, double stamp_s);
 
+  void object_failed(scene::Object& obj, ObjectReport& rep, const char* what) const;
+
   CycleParams p_;
   Clock::time_point (*now_)();
+  std::function<void(const scene::Object&)> object_hook_;
   int tangent_junctions_ = 0;  // line-arc tangent junctions observed in the last collect_observations
   int refound_ = 0;  // features missed in the first pass and found by a later one (this call)
   features::LineTracker tracker_, reduced_tracker_;

@@ -17,7 +17,7 @@
 namespace v4r::protocol {
 
 /// \brief `ObjectPose object=ID frame=N stamp=S t=tx,ty,tz q=qw,qx,qy,qz cov=<36> quality=Q
-/// status=tracking|degraded|lost`: the pose of one object after one frame.
+/// status=tracking|degraded|lost|failed`: the pose of one object after one frame.
 struct ObjectPoseEvent {
   std::string object;
   std::uint64_t frame = 0;  ///< input frame index, counted from 0
@@ -33,7 +33,7 @@ struct ObjectPoseEvent {
 };
 
 /// \brief `SystemStatus frame=N cycle_ms=X features_found=A features_used=B outliers=C
-/// overruns=D`: one vision cycle, summed over all objects.
+/// overruns=D [failed=F]`: one vision cycle, summed over all objects.
 struct SystemStatusEvent {
   std::uint64_t frame = 0;
   double cycle_ms = 0.0;  ///< wall time of the cycle, milliseconds
@@ -41,6 +41,7 @@ struct SystemStatusEvent {
   std::uint64_t features_used = 0;  ///< found and used by the pose estimate
   std::uint64_t outliers = 0;       ///< found but rejected as outliers
   std::uint64_t overruns = 0;       ///< cycles over the time budget since the start
+  std::uint64_t failed = 0;         ///< objects whose cycle failed (`failed=N`, sent only when > 0)
   bool operator==(const SystemStatusEvent&) const = default;
 };
 

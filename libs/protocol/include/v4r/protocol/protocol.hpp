@@ -49,6 +49,7 @@ inline constexpr std::string_view kBadValue = "bad_value";            ///< SetPa
 inline constexpr std::string_view kBadModel = "bad_model";            ///< model text/file does not parse
 inline constexpr std::string_view kUnsupported = "unsupported";       ///< e.g. a model format not built in
 inline constexpr std::string_view kIoError = "io_error";              ///< file cannot be read/written
+inline constexpr std::string_view kForbidden = "forbidden";            ///< a path outside the operator's folders
 inline constexpr std::string_view kTruncated = "truncated";           ///< payload cut off
 inline constexpr std::string_view kBusy = "busy";                     ///< server cannot take it now
 inline constexpr std::string_view kInternal = "internal";
@@ -62,11 +63,11 @@ enum class ModelFormat { kCao, kObj, kPly, kStl };
 /// \brief Event streams a client can subscribe to.
 enum class Topic { kObjectPose, kSystemStatus };
 /// \brief Tracking state of one object in an ObjectPose event.
-enum class TrackStatus { kTracking, kDegraded, kLost };
+enum class TrackStatus { kTracking, kDegraded, kLost, kFailed };
 
 std::string_view to_string(ModelFormat f);  ///< "cao", "obj", "ply", "stl"
 std::string_view to_string(Topic t);        ///< "ObjectPose", "SystemStatus"
-std::string_view to_string(TrackStatus s);  ///< "tracking", "degraded", "lost"
+std::string_view to_string(TrackStatus s);  ///< "tracking", "degraded", "lost", "failed"
 
 // ---------------------------------------------------------------------------------------------
 // Commands (client -> server). One struct per command; field names follow the keys on the wire.

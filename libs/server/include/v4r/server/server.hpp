@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -27,12 +28,19 @@ struct ServerOptions {
   std::string token;               ///< non-empty: clients must send `Auth token=...` first (any address)
   std::size_t max_clients = 200;   ///< more connections are refused with `ERR ? code=busy`
   std::size_t max_replies = 256;   ///< replies waiting for a client that does not read; more: disconnect
+  std::size_t event_backlog = 64;  ///< unsent events kept per stream and object for a client that is behind (older ones are dropped)
   std::chrono::milliseconds write_stall_timeout{30000};  ///< a write making no progress this long: disconnect
   std::chrono::milliseconds auth_timeout{10000};         ///< time to authenticate when a token is set
   std::chrono::milliseconds close_grace{2000};           ///< time a final ERR gets to reach a client before close
   pipeline::CycleParams params;    ///< initial tracker parameters
-  std::string log_file = "v4r_cycles.csv";  ///< `Log on` without file=
+  std::string log_file = "v4r_cycles.csv";  ///< `Log on` without file= (the operator's choice: not bounded by log_dir)
+  std::vector<std::string> data_dirs;  ///< folders `AddModel path=` may read (relative: inside the first); empty: the working folder
+  std::string log_dir;                 ///< folder `Log on file=` may write; empty: `file=` is refused
   bool handle_signals = true;      ///< SIGINT / SIGTERM stop run()
+  /// Test seam (no command-line option, no protocol command): called on the tracking thread with
+  /// each tracked object's name at the start of its cycle; whatever it throws is a fault in that
+  /// object's cycle. Empty in production.
+  std::function<void(const std::string& object)> object_hook;
 };
 
 /// \brief Counters of a running server (read from any thread).
@@ -41,7 +49,12 @@ struct ServerStats {
   std::size_t clients = 0;           ///< connected protocol clients
   std::uint64_t connections = 0;     ///< accepted connections so far
   std::uint64_t refused = 0;         ///< connections refused (max_clients)
-  std::uint64_t disconnected_slow = 0;  ///< clients dropped for not reading (reply overflow, stalled write)
+  std::uint64_t disconnected_slow = 0;  ///< clients dropped (or being dropped) for not reading (reply overflow, stalled write)
+  int objects_failed = 0;            ///< objects whose cycle threw (status=failed)
+  std::uint64_t faults = 0;          ///< faults caught outside one object's cycle (frames, commands, network handlers)
+  bool tracking_alive = true;        ///< false once the tracking thread stopped on an error
+  std::size_t peak_write_lines = 0;  ///< most lines handed to one client's socket in one write (outbox high-water mark)
+  std::size_t peak_write_bytes = 0;  ///< most bytes in one such write
   bool paused = false;
   bool end_of_input = false;
 };
@@ -59,7 +72,12 @@ struct ServerStats {
 /// serving (commands still work) until it is stopped. Events go to every subscribed client; a
 /// slow one gets the newest pose per object, a client that leaves more than max_replies replies
 /// unread is dropped after a last `ERR ? code=busy`, and one whose writes make no progress for
-/// write_stall_timeout is dropped.
+/// write_stall_timeout is dropped after `ERR ? code=busy msg="not reading..."` (sent if it reads
+/// within close_grace).
+///
+/// Files: clients reach only the operator's folders (data_dirs for models and their includes,
+/// log_dir for `Log on file=`); anything else gets `code=forbidden` and is neither read nor
+/// created. Faults: see TrackingService; the network thread logs a handler that throws and goes on.
 class Server {
  public:
   /// Validates the options (a non-loopback bind needs a token), opens the input (checking its

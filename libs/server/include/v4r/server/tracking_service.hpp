@@ -19,6 +19,7 @@
 #include "v4r/core/clock.hpp"
 #include "v4r/core/expected.hpp"
 #include "v4r/core/params.hpp"
+#include "v4r/filter/pose_filter.hpp"
 #include "v4r/geometry/camera.hpp"
 #include "v4r/io/frame_source.hpp"
 #include "v4r/model/model.hpp"
@@ -27,6 +28,7 @@
 #include "v4r/scene/scene.hpp"
 #include "v4r/server/feature_model.hpp"
 #include "v4r/server/outbox.hpp"
+#include "v4r/server/path_policy.hpp"
 
 namespace v4r::server {
 
@@ -36,9 +38,14 @@ struct ServiceOptions {
   double fps = 30.0;               ///< frames per second the input is played at; <= 0: as fast as processed
   bool paused = false;             ///< hold at frame 0 until Start
   pipeline::CycleParams params;    ///< initial tracker parameters
-  std::string default_log_file = "v4r_cycles.csv";  ///< `Log on` without file=
+  std::string default_log_file = "v4r_cycles.csv";  ///< `Log on` without file= (the operator's file)
+  PathPolicy log_dirs;             ///< where `Log on file=` may write (empty: refused)
   std::size_t max_objects = 64;    ///< AddObject beyond this: ERR code=busy
   std::size_t max_features = 10000;  ///< AddFeature beyond this many features per object: ERR code=busy
+  /// Test seam (never set by a client or the command line): called with each tracked object's
+  /// name at the start of its measurement on the tracking thread; whatever it throws is a fault
+  /// in that object's cycle.
+  std::function<void(const std::string& object)> object_hook;
 };
 
 /// \brief Everything one frame produced for the clients, formatted once and shared by all of them.
@@ -72,6 +79,12 @@ struct ModelReady {
 /// Play state: with `paused` the service holds before frame 0 until Start. Pause holds before
 /// the next frame (the last one is not processed again, no events are sent). At the end of the
 /// input the service stops producing events and keeps applying commands.
+///
+/// Faults: a throw in one object's cycle marks that object failed (status=failed with its last
+/// pose and a growing covariance, SystemStatus failed=N, logged) until SetPose or AddModel; a
+/// throw elsewhere in a frame skips that frame, in a command answers it `ERR ... code=internal`,
+/// in the overlay drops that picture. Whatever escapes ends the thread through a top-level
+/// handler that logs it and answers every waiting command (healthy() turns false).
 class TrackingService {
  public:
   using ReplyFn = std::function<void(std::string)>;  ///< receives the reply line (without LF)
@@ -106,6 +119,12 @@ class TrackingService {
   [[nodiscard]] bool display() const { return display_.load(); }
   /// Number of objects currently tracked (with a model and a pose).
   [[nodiscard]] int objects_tracked() const { return tracked_.load(); }
+  /// Number of objects whose cycle failed (reported with status=failed until SetPose or AddModel).
+  [[nodiscard]] int objects_failed() const { return failed_.load(); }
+  /// Faults outside any one object's cycle (a frame, an overlay, a command) that were caught.
+  [[nodiscard]] std::uint64_t faults() const { return faults_.load(); }
+  /// False once the tracking thread stopped after an error it could not recover from.
+  [[nodiscard]] bool healthy() const { return healthy_.load(); }
 
  private:
   struct ObjectEntry {
@@ -116,6 +135,13 @@ class TrackingService {
     bool dirty = false;                         ///< features changed: rebuild before the next frame
     bool has_pose = false;
     geometry::SE3 pose;  ///< last SetPose (T_cam_obj), applied when the model arrives
+    bool failed = false;       ///< its cycle threw: out of the scene until SetPose or AddModel
+    std::string error;         ///< what it threw
+    /// A pose that is held (lost, failed): the filter that predicts its covariance from the time
+    /// the hold began (used when the scene's filter does not run for it).
+    filter::PoseFilter hold;
+    double hold_stamp = -1.0;  ///< seconds; < 0: not holding
+    geometry::SE3 held_pose;   ///< T_cam_obj when it failed
   };
   struct Pending {
     Request request;
@@ -123,6 +149,7 @@ class TrackingService {
   };
 
   void run(std::stop_token st);
+  void loop(std::stop_token st);
   void apply_pending();
   std::string apply(const Request& r);
   std::string apply_command(const protocol::Command& c);
@@ -130,6 +157,11 @@ class TrackingService {
   void load_next_frame();
   void rebuild_models();
   void process_frame(Clock::time_point released);
+  void frame_cycle(Clock::time_point released);
+  void object_failed(std::size_t scene_index, const std::string& error, double stamp);
+  void count_objects();
+  geometry::Matrix6d published_covariance(ObjectEntry* e, const scene::Object& o, double stamp);
+  void publish_overlay(const pipeline::CycleReport& rep, std::int64_t index);
   ObjectEntry* find(const std::string& name);
 
   // Command handlers: return the reply line.
@@ -172,7 +204,9 @@ class TrackingService {
 
   std::atomic<std::int64_t> frames_{0};
   std::atomic<bool> paused_{false}, end_{false}, display_{false};
-  std::atomic<int> tracked_{0};
+  std::atomic<int> tracked_{0}, failed_{0};
+  std::atomic<std::uint64_t> faults_{0};
+  std::atomic<bool> healthy_{true};
   std::jthread thread_;
 };
 
