@@ -3,8 +3,9 @@ BUILD ?= build
 JOBS ?= $(shell nproc)
 DEB_PACKAGES := build-essential cmake ninja-build pkg-config libeigen3-dev libopencv-dev libasio-dev \
 	libcli11-dev libspdlog-dev libfmt-dev libyaml-cpp-dev libgtest-dev libgmock-dev libbenchmark-dev libassimp-dev
-# Only for `make test`: headless Chromium checks the monitoring page of `v4r serve`.
-TEST_PACKAGES := chromium
+# Only for `make test`: headless Chromium checks the monitoring page of `v4r serve`; python3 runs
+# the README commands and the protocol units test.
+TEST_PACKAGES := chromium python3
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 
 .PHONY: all deps test-deps configure build test demo bench fuzz clean

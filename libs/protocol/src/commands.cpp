@@ -36,8 +36,18 @@ ParseResult parse_remove_object(Args& a) { return parse_name_only(a, "name", tru
 
 ModelFormat read_format(Args& a) { return static_cast<ModelFormat>(a.word("format", {"cao", "obj", "ply", "stl"})); }
 
+/// scale= of AddModel: model units to metres (0.001 for millimetres), default 1.
+double read_scale(Args& a) {
+  if (!a.has("scale")) return 1.0;
+  const double s = a.number("scale");
+  if (a.ok() && !(s > 0.0 && s <= 1e6))
+    a.fail(code::kOutOfRange, "scale=: must be > 0 (model units to metres: 0.001 for millimetres)",
+           a.find("scale")->value_column);
+  return s;
+}
+
 ParseResult parse_add_model(Args& a) {
-  a.check_keys({"object", "format", "bytes", "path"});
+  a.check_keys({"object", "format", "bytes", "path", "scale"});
   a.require({"object"});
   const Token* bytes = a.find("bytes");
   const Token* path = a.find("path");
@@ -58,12 +68,14 @@ ParseResult parse_add_model(Args& a) {
              "bytes=: " + std::to_string(n) + " is beyond the limit of " + std::to_string(kMaxPayloadBytes) + " bytes",
              bytes->value_column);
     c.bytes = static_cast<std::size_t>(n);
+    c.scale = read_scale(a);
     return done(a, std::move(c));
   }
   AddModelPath c;
   c.object = std::move(object);
   c.path = a.text("path");
   if (a.has("format")) c.format = read_format(a);
+  c.scale = read_scale(a);
   return done(a, std::move(c));
 }
 
@@ -350,12 +362,14 @@ std::string format(const Command& c) {
           [](const AddObject& x) { return "name=" + x.name; },
           [](const RemoveObject& x) { return "name=" + x.name; },
           [](const AddModelInline& x) {
-            return "object=" + x.object + " format=" + std::string(to_string(x.format)) +
-                   " bytes=" + std::to_string(x.bytes);
+            std::string s = "object=" + x.object + " format=" + std::string(to_string(x.format));
+            if (x.scale != 1.0) s += " scale=" + format_number(x.scale);
+            return s + " bytes=" + std::to_string(x.bytes);
           },
           [](const AddModelPath& x) {
             std::string s = "object=" + x.object + " path=" + format_value(x.path);
             if (x.format) s += " format=" + std::string(to_string(*x.format));
+            if (x.scale != 1.0) s += " scale=" + format_number(x.scale);
             return s;
           },
           [](const AddJunction& x) { return "object=" + x.object + " type=junction id=" + x.id + " p=" + vec(x.p); },

@@ -11,6 +11,7 @@
 
 #include "v4r/model/cao_reader.hpp"
 #include "v4r/model/mesh_reader.hpp"
+#include "v4r/model/model_scale.hpp"
 
 namespace v4r::server {
 
@@ -25,8 +26,13 @@ Unexpected fail(std::string_view code, Error e) {
 
 Unexpected fail(std::string_view code, std::string msg) { return fail(code, Error{std::move(msg), {}, 0, 0, {}}); }
 
-Expected<std::shared_ptr<const model::Model>> finish(Expected<model::Model> m, const std::string& source) {
+Expected<std::shared_ptr<const model::Model>> finish(Expected<model::Model> m, const std::string& source,
+                                                     double scale = 1.0) {
   if (!m) return fail(protocol::code::kBadModel, m.error());
+  if (scale != 1.0) {  // .cao in other units than metres (meshes are scaled on import)
+    m = model::scaled(*m, scale);
+    if (!m) return fail(protocol::code::kBadModel, m.error());
+  }
   if (m->lines().empty() && m->arcs().empty()) return fail(protocol::code::kBadModel, source + ": model has no edges to track");
   return std::shared_ptr<const model::Model>(std::make_shared<const model::Model>(std::move(*m)));
 }
@@ -44,8 +50,8 @@ std::optional<protocol::ModelFormat> format_of(const std::string& path) {
 }  // namespace
 
 Expected<std::shared_ptr<const model::Model>> load_model_text(const std::string& text, protocol::ModelFormat format,
-                                                              const std::string& source) {
-  if (format == protocol::ModelFormat::kCao) return finish(model::parse_cao(text, source), source);
+                                                              const std::string& source, double scale) {
+  if (format == protocol::ModelFormat::kCao) return finish(model::parse_cao(text, source), source, scale);
   // Meshes go through assimp, which reads files: write the payload to a private temporary file.
   static std::atomic<unsigned> counter{0};
   const fs::path tmp = fs::temp_directory_path() /
@@ -59,7 +65,9 @@ Expected<std::shared_ptr<const model::Model>> load_model_text(const std::string&
     fs::remove(tmp, ec);
     return fail(protocol::code::kIoError, "cannot write a temporary file for the mesh");
   }
-  auto m = model::load_mesh(tmp.string());
+  model::MeshImportOptions mo;
+  mo.scale = scale;
+  auto m = model::load_mesh(tmp.string(), mo);
   std::error_code ec;
   fs::remove(tmp, ec);
   if (!m) {
@@ -71,15 +79,18 @@ Expected<std::shared_ptr<const model::Model>> load_model_text(const std::string&
 }
 
 Expected<std::shared_ptr<const model::Model>> load_model_path(const std::string& path,
-                                                              std::optional<protocol::ModelFormat> format) {
+                                                              std::optional<protocol::ModelFormat> format,
+                                                              double scale) {
   if (!format) format = format_of(path);
   if (!format)
     return fail(protocol::code::kUnsupported,
                 fmt::format("{}: cannot tell the model format from the extension (use format=cao|obj|ply|stl)", path));
   std::error_code ec;
   if (!fs::is_regular_file(path, ec)) return fail(protocol::code::kIoError, fmt::format("{}: no such model file", path));
-  if (*format == protocol::ModelFormat::kCao) return finish(model::load_cao(path), path);
-  return finish(model::load_mesh(path), path);
+  if (*format == protocol::ModelFormat::kCao) return finish(model::load_cao(path), path, scale);
+  model::MeshImportOptions mo;
+  mo.scale = scale;
+  return finish(model::load_mesh(path, mo), path);
 }
 
 Worker::Worker() {

@@ -172,7 +172,7 @@ void Session::handle_payload(std::string bytes) {
   TrackingService& service = host_.service();
   SessionHost& host = host_;
   host_.loader().post([cmd = std::move(cmd), text = std::move(bytes), done = std::move(done), &service, &host]() mutable {
-    auto m = load_model_text(text, cmd.format, fmt::format("<AddModel object={}>", cmd.object));
+    auto m = load_model_text(text, cmd.format, fmt::format("<AddModel object={}>", cmd.object), cmd.scale);
     std::string().swap(text);
     host.release_payload(cmd.bytes);
     if (!m) {
@@ -224,7 +224,7 @@ void Session::handle_command(const protocol::Command& cmd) {
             auto done = deferred_reply();
             TrackingService& service = host_.service();
             host_.loader().post([p, done = std::move(done), &service]() mutable {
-              auto m = load_model_path(p.path, p.format);
+              auto m = load_model_path(p.path, p.format, p.scale);
               if (!m) {
                 done(model_error(m.error()));
                 return;

@@ -19,13 +19,15 @@ namespace v4r::server {
 /// Parses the model text of `AddModel ... bytes=N` (.cao directly; OBJ/PLY/STL through a
 /// temporary file). `source` names it in errors. Errors set `Error::field` to the protocol
 /// error code (bad_model, unsupported, io_error). A model without edges or circles is an error.
+/// Every length is multiplied by `scale` (model units to metres, AddModel scale=).
 Expected<std::shared_ptr<const model::Model>> load_model_text(const std::string& text, protocol::ModelFormat format,
-                                                              const std::string& source);
+                                                              const std::string& source, double scale = 1.0);
 
 /// Loads the model file of `AddModel ... path=FILE`; without a format it is deduced from the
 /// extension. Errors as load_model_text.
 Expected<std::shared_ptr<const model::Model>> load_model_path(const std::string& path,
-                                                              std::optional<protocol::ModelFormat> format);
+                                                              std::optional<protocol::ModelFormat> format,
+                                                              double scale = 1.0);
 
 /// \brief One background thread running queued jobs in order (model parsing, so that neither the
 /// network thread nor the tracking thread waits for a large model). Jobs still queued at

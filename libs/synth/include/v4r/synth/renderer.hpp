@@ -213,4 +213,10 @@ geometry::PinholeCamera default_camera();
 Expected<void> write_sequence(const std::string& dir, const std::string& model_cao, const geometry::PinholeCamera& cam,
                               const std::vector<geometry::SE3>& trajectory, const RenderOptions& opt);
 
+/// The same for a model already loaded (a mesh, in metres): `model_file` (e.g. "model.obj") is
+/// written into `dir` holding `model_bytes` (the file the model was read from).
+Expected<void> write_sequence(const std::string& dir, const model::Model& model, const std::string& model_file,
+                              const std::string& model_bytes, const geometry::PinholeCamera& cam,
+                              const std::vector<geometry::SE3>& trajectory, const RenderOptions& opt);
+
 }  // namespace v4r::synth
