@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -127,7 +128,11 @@ class FirstContact : public ::testing::Test {
   }
   static std::string pose_string(const std::vector<double>& v) {
     std::string s;
-    for (double x : v) s += (s.empty() ? "" : " ") + std::to_string(x);
+    char buf[40];
+    for (double x : v) {
+      std::snprintf(buf, sizeof buf, s.empty() ? "%.17g" : " %.17g", x);
+      s.append(buf);
+    }
     return s;
   }
   static std::size_t count(const std::string& text, const std::string& what) {
