@@ -5,6 +5,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -394,4 +395,27 @@ TEST_F(FirstContact, VideoFrameRateGivesTheTimeStamps) {
                             (dir_ / "p20.csv").string());
   ASSERT_EQ(forced.code, 0) << forced.err;
   EXPECT_NEAR(read_csv(dir_ / "p20.csv").num(7, "stamp_s"), 0.35, 1e-9);
+}
+
+TEST_F(FirstContact, FileTimesGiveTheTimeStampsWhenAsked) {
+  const fs::path frames = dir_ / "timed";
+  fs::create_directories(frames);
+  const auto t0 = fs::last_write_time(seq("frames/000000.png"));
+  for (int i = 0; i < 4; ++i) {
+    char name[32];
+    std::snprintf(name, sizeof name, "%06d.png", i);
+    fs::copy_file(seq(std::string("frames/") + name), frames / name, fs::copy_options::overwrite_existing);
+    fs::last_write_time(frames / name, t0 + std::chrono::milliseconds(250 * i));
+  }
+  const std::string common = " --model box --camera " + seq("camera.yaml") + " --input " + frames.string() +
+                             " --init-pose-file " + seq("init_pose.txt");
+  const CliRun r = run("track" + common + " --file-times --output " + (dir_ / "timed.csv").string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("time stamps: image file times"), std::string::npos) << r.out;
+  const Csv c = read_csv(dir_ / "timed.csv");
+  ASSERT_EQ(c.rows.size(), 4u);
+  for (std::size_t i = 0; i < 4; ++i) EXPECT_NEAR(c.num(i, "stamp_s"), 0.25 * static_cast<double>(i), 1e-6) << i;
+  const CliRun plain = run("track" + common + " --output " + (dir_ / "untimed.csv").string());
+  ASSERT_EQ(plain.code, 0) << plain.err;
+  EXPECT_NEAR(read_csv(dir_ / "untimed.csv").num(3, "stamp_s"), 0.1, 1e-6);  // filter.frame_interval = 1/30 s
 }

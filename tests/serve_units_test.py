@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 # v4r - robust model-based object tracking. MIT licence.
 """Units over the protocol: a millimetre OBJ with `AddModel ... scale=0.001` tracks as well as
-the metre one, and `SetPose` refuses degrees and millimetres.
+the metre one, and `SetPose` refuses degrees and millimetres. Also the objects' lifetime: an
+object outlives the client that added it unless added with `lifetime=connection`.
 
 usage: serve_units_test.py --v4r build/bin/v4r
 """
@@ -14,6 +15,7 @@ import socket
 import subprocess
 import sys
 import tempfile
+import time
 
 FRAMES = 20
 
@@ -90,6 +92,25 @@ def track(v4r, cwd, model, scale, checks):
             bad = c.request("AddModel object=part path=" + model + " scale=0")
             print(bad)
             assert bad.startswith("ERR AddModel code=out_of_range"), bad
+        if checks:
+            # Object lifetime: a server object outlives its client, a connection object does not.
+            other = Client(port)
+            other.ok("AddObject name=kept")
+            other.ok("AddObject name=mine lifetime=connection")
+            other.sock.sendall(b"Quit\n")
+            other.sock.close()
+            for _ in range(100):
+                again = c.request("AddObject name=mine")
+                if again.startswith("OK "):
+                    break
+                time.sleep(0.05)
+            print(again)
+            assert again.startswith("OK AddObject"), again
+            kept = c.request("AddObject name=kept")
+            print(kept)
+            assert kept.startswith("ERR AddObject code=exists"), kept
+            c.ok("RemoveObject name=kept")
+            c.ok("RemoveObject name=mine")
         c.ok("SetPose object=part t=" + t + " r=" + r)
         c.ok("Subscribe what=ObjectPose")
         c.ok("Start")

@@ -31,7 +31,14 @@ ParseResult parse_name_only(Args& a, std::string_view key, bool remove) {
   return done(a, AddObject{std::move(n)});
 }
 
-ParseResult parse_add_object(Args& a) { return parse_name_only(a, "name", false); }
+ParseResult parse_add_object(Args& a) {
+  a.check_keys({"name", "lifetime"});
+  a.require({"name"});
+  AddObject c;
+  c.name = a.name("name");
+  if (a.has("lifetime")) c.connection_lifetime = a.word("lifetime", {"server", "connection"}) == 1;
+  return done(a, std::move(c));
+}
 ParseResult parse_remove_object(Args& a) { return parse_name_only(a, "name", true); }
 
 ModelFormat read_format(Args& a) { return static_cast<ModelFormat>(a.word("format", {"cao", "obj", "ply", "stl"})); }
@@ -359,7 +366,7 @@ std::string format(const Command& c) {
   const std::string name(command_name(c));
   const std::string args = std::visit(
       Overloaded{
-          [](const AddObject& x) { return "name=" + x.name; },
+          [](const AddObject& x) { return "name=" + x.name + (x.connection_lifetime ? " lifetime=connection" : ""); },
           [](const RemoveObject& x) { return "name=" + x.name; },
           [](const AddModelInline& x) {
             std::string s = "object=" + x.object + " format=" + std::string(to_string(x.format));

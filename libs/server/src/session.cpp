@@ -232,6 +232,25 @@ void Session::handle_command(const protocol::Command& cmd) {
               service.submit(ModelReady{p.object, std::move(*m)}, std::move(done));
             });
           },
+          [&](const protocol::AddObject& a) {
+            if (!a.connection_lifetime) {
+              host_.service().submit(cmd, deferred_reply());
+              return;
+            }
+            // Owned by this connection once the service said OK (recorded on the network thread).
+            host_.service().submit(cmd, [done = deferred_reply(), w = weak_from_this(), &io = host_.io(),
+                                         name = a.name](std::string line) mutable {
+              if (line.rfind("OK ", 0) == 0)
+                asio::post(io, [w, name]() {
+                  if (auto s = w.lock()) s->owned_.push_back(name);
+                });
+              done(std::move(line));
+            });
+          },
+          [&](const protocol::RemoveObject& r) {
+            std::erase(owned_, r.name);
+            host_.service().submit(cmd, deferred_reply());
+          },
           [&](const auto&) { host_.service().submit(cmd, deferred_reply()); },
       },
       cmd);
@@ -360,6 +379,8 @@ void Session::close() {
     host_.release_payload(payload_cmd_->bytes);
     payload_cmd_.reset();
   }
+  for (std::string& name : owned_) host_.service().submit(protocol::Command{protocol::RemoveObject{std::move(name)}}, [](std::string) {});
+  owned_.clear();
   release();
 }
 

@@ -71,9 +71,11 @@ std::string_view to_string(TrackStatus s);  ///< "tracking", "degraded", "lost"
 // ---------------------------------------------------------------------------------------------
 // Commands (client -> server). One struct per command; field names follow the keys on the wire.
 
-/// \brief `AddObject name=ID`: a new, empty object.
+/// \brief `AddObject name=ID [lifetime=server|connection]`: a new, empty object. It belongs to the
+/// server (default) or, with lifetime=connection, is removed when the client that added it disconnects.
 struct AddObject {
   std::string name;
+  bool connection_lifetime = false;
   bool operator==(const AddObject&) const = default;
 };
 /// \brief `RemoveObject name=ID`.
