@@ -14,6 +14,7 @@
 #include "app.hpp"
 #include "inspect.hpp"
 #include "plausibility.hpp"
+#include "progress.hpp"
 #include "v4r/geometry/look_at.hpp"
 #include "v4r/io/camera_io.hpp"
 #include "v4r/io/config_io.hpp"
@@ -135,7 +136,10 @@ int cmd_render(const RenderArgs& a) {
   for (const std::string& w : app::check_model_size(*in->model, a.model)) fmt::print(stderr, "v4r render: warning: {}\n", w);
   for (const std::string& w : app::check_projection(*in->model, *cam, traj.front()))
     fmt::print(stderr, "v4r render: warning: {}\n", w);
-  auto r = synth::write_sequence(a.out, *in->model, in->file_name, in->bytes, *cam, traj, render_options_for(a));
+  app::ProgressLine bar(app::stderr_is_terminal(), a.frames);
+  auto r = synth::write_sequence(a.out, *in->model, in->file_name, in->bytes, *cam, traj, render_options_for(a),
+                                 [&bar](std::size_t done, std::size_t) { bar.update(static_cast<int>(done)); });
+  bar.finish();
   if (!r) {
     fmt::print(stderr, "v4r render: error: {}\n", r.error().to_string());
     return 1;

@@ -1,7 +1,4 @@
 // v4r - robust model-based object tracking. MIT licence.
-#include <unistd.h>
-
-#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <optional>
@@ -14,6 +11,7 @@
 
 #include "app.hpp"
 #include "plausibility.hpp"
+#include "progress.hpp"
 #include "v4r/io/camera_io.hpp"
 #include "v4r/io/frame_source.hpp"
 #include "v4r/io/pose_io.hpp"
@@ -60,36 +58,6 @@ class OverlayWriter {
   std::string path_;
   bool folder_ = false;
   cv::VideoWriter video_;
-};
-
-/// The progress line on stderr: frames, rate and losses, refreshed at most 4 times a second once
-/// the run has taken a second.
-class Progress {
- public:
-  Progress(bool on, int total) : on_(on), total_(total), start_(Clock::now()), last_(start_) {}
-  void update(int frames, int lost) {
-    if (!on_) return;
-    const auto now = Clock::now();
-    if (now - start_ < std::chrono::seconds(1) || now - last_ < std::chrono::milliseconds(250)) return;
-    last_ = now;
-    shown_ = true;
-    const double s = std::chrono::duration<double>(now - start_).count();
-    const std::string of = total_ > 0 ? fmt::format("/{}", total_) : "";
-    fmt::print(stderr, "\r  frame {}{}  {:.0f} fps  lost {}   ", frames, of, frames / s, lost);
-    std::fflush(stderr);
-  }
-  void finish() {
-    if (shown_) fmt::print(stderr, "\n");
-    shown_ = false;
-  }
-  ~Progress() { finish(); }
-
- private:
-  using Clock = std::chrono::steady_clock;
-  bool on_;
-  int total_;
-  Clock::time_point start_, last_;
-  bool shown_ = false;
 };
 
 /// Edges and circles the pose solve kept (found, not rejected as outliers): `features_used` as the
@@ -178,8 +146,8 @@ Expected<TrackSummary> run_track(const TrackOptions& opt) {
   TrackSummary s;
   s.timing = timing.source;
   s.fps = timing.fps;
-  const bool progress = opt.progress > 0 || (opt.progress < 0 && ::isatty(STDERR_FILENO) != 0);
-  Progress bar(progress && !opt.quiet, (*source)->size_hint());
+  const bool progress = opt.progress > 0 || (opt.progress < 0 && stderr_is_terminal());
+  ProgressLine bar(progress && !opt.quiet, (*source)->size_hint());
   cv::Mat frame, grey;
   double first_file_time = -1.0;
   for (int i = 0;; ++i) {

@@ -61,7 +61,8 @@ Expected<void> write_sequence(const std::string& dir, const std::string& model_c
 
 Expected<void> write_sequence(const std::string& dir, const model::Model& model, const std::string& model_file,
                               const std::string& model_bytes, const geometry::PinholeCamera& cam,
-                              const std::vector<geometry::SE3>& trajectory, const RenderOptions& opt) {
+                              const std::vector<geometry::SE3>& trajectory, const RenderOptions& opt,
+                              const std::function<void(std::size_t, std::size_t)>& progress) {
   const fs::path root(dir);
   const fs::path model_path = root / model_file;
   if (trajectory.empty()) return path_error(root, "the trajectory is empty: nothing to render");
@@ -102,6 +103,7 @@ Expected<void> write_sequence(const std::string& dir, const model::Model& model,
       return path_error(frame_path, fmt::format("cannot write the frame: {}", e.what()));
     }
     if (!ok) return path_error(frame_path, "cannot write the frame");
+    if (progress) progress(i + 1, trajectory.size());
   }
   return {};
 }
