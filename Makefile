@@ -4,8 +4,9 @@ JOBS ?= $(shell nproc)
 DEB_PACKAGES := build-essential cmake ninja-build pkg-config libeigen3-dev libopencv-dev libasio-dev \
 	libcli11-dev libspdlog-dev libfmt-dev libyaml-cpp-dev libgtest-dev libgmock-dev libbenchmark-dev libassimp-dev
 # Only for `make test`: headless Chromium checks the monitoring page of `v4r serve`; ViSP's images
-# (real cube sequence, .cao models) for tests/visp_cube_test.cpp.
-TEST_PACKAGES := chromium visp-images-data
+# (real cube sequence, .cao models) for tests/visp_cube_test.cpp; python3 runs the README commands
+# and the protocol units test.
+TEST_PACKAGES := chromium visp-images-data python3
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 
 .PHONY: all deps test-deps configure build test demo bench fuzz clean

@@ -10,19 +10,30 @@
 #include "v4r/geometry/camera.hpp"
 #include "v4r/geometry/se3.hpp"
 #include "v4r/model/cao_reader.hpp"
+#include "v4r/io/pose_io.hpp"
 #include "v4r/model/model.hpp"
 #include "v4r/pipeline/tracker.hpp"
 
 namespace v4r::app {
 
+/// The model's units as the user gives them: `--mesh-scale S` or `--model-units mm|cm|m`.
+struct ModelUnitsArgs {
+  double mesh_scale = 1.0;
+  bool mesh_scale_given = false;
+  std::string units;  ///< empty: not given
+};
+
 /// Options shared by `v4r track` and `v4r demo`.
 struct TrackOptions {
   std::string model_path, camera_path, input, output_csv, overlay, gt_csv;
-  std::optional<geometry::SE3> init_pose;
+  std::optional<io::PoseNumbers> init_pose;  ///< --init-pose as given
   std::string init_pose_file;
   pipeline::CycleParams params;
-  double fps = 30.0;        ///< frame rate of the input (time stamps for the filter); <= 0: default interval
-  double mesh_scale = 1.0;  ///< file units -> metres for mesh models
+  double fps = 0.0;          ///< frame rate given by --fps; 0: the video's own rate, else filter.frame_interval
+  bool file_times = false;   ///< time stamps from the image files' modification times
+  double mesh_scale = 1.0;   ///< model units -> metres
+  bool warnings = true;      ///< plausibility checks of the inputs (--no-warnings turns them off)
+  int progress = -1;         ///< progress line on stderr: 1 always, 0 never, -1 when stderr is a terminal
   bool quiet = false;
 };
 
@@ -34,11 +45,28 @@ struct TrackSummary {
   std::vector<double> cycle_ms, visibility_ms, track_ms, solve_ms;
   std::vector<int> features_used;
   std::vector<int> features_visible, features_found, junctions_used;  ///< per frame (v4r bench)
+  double fps = 0.0;        ///< frame rate of the time stamps (0: file times)
+  std::string timing;      ///< where the time stamps came from
+  std::size_t warnings = 0;  ///< plausibility warnings printed
 };
 
-/// Loads a model by extension (.cao or a mesh). Errors name the file; accepted imperfections of a
-/// .cao (faces slightly off their plane) go to `warnings` if given, else to the log.
-Expected<std::shared_ptr<const model::Model>> load_model(const std::string& path, double mesh_scale = 1.0,
+/// The .cao text of a built-in model (box, ship, flange, section), or nothing.
+std::optional<std::string> builtin_model_text(const std::string& name);
+
+/// True for the mesh extensions read through assimp (.obj, .ply, .stl, ...).
+bool is_mesh_path(const std::string& path);
+
+/// mm -> 0.001, cm -> 0.01, m -> 1; anything else is an error naming --model-units.
+Expected<double> units_scale(const std::string& units);
+
+/// The scale of --mesh-scale / --model-units (an error when both are given and disagree).
+Expected<double> model_scale(const ModelUnitsArgs& a);
+
+/// Loads a model: a built-in name (box, ship, flange, section), a .cao file or a mesh (.obj,
+/// .ply, .stl, ...); every length is multiplied by `scale` (file units -> metres). Errors name
+/// the file. Accepted imperfections of a .cao (faces slightly off their plane) go to `warnings`
+/// if given, else to the log.
+Expected<std::shared_ptr<const model::Model>> load_model(const std::string& path, double scale = 1.0,
                                                          const model::CaoReadOptions& cao = {},
                                                          std::vector<Error>* warnings = nullptr);
 

@@ -1,7 +1,10 @@
 // v4r - robust model-based object tracking. MIT licence.
 // The v4r command line: track, render, demo, bench, inspect-model.
+#include <cctype>
 #include <exception>
 #include <filesystem>
+#include <fstream>
+#include <sstream>
 
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
@@ -9,6 +12,9 @@
 #include <opencv2/imgproc.hpp>
 
 #include "app.hpp"
+#include "inspect.hpp"
+#include "plausibility.hpp"
+#include "progress.hpp"
 #include "v4r/geometry/look_at.hpp"
 #include "v4r/io/camera_io.hpp"
 #include "v4r/io/config_io.hpp"
@@ -31,6 +37,8 @@ namespace {
 
 struct RenderArgs {
   std::string model = "ship", out, camera;
+  app::ModelUnitsArgs units;
+  bool force = false;
   int frames = 120;
   double speed = 1.0, distance = 0.6, azimuth = -0.6, elevation = 0.75, noise = 2.0;
   unsigned seed = 7;
@@ -39,20 +47,49 @@ struct RenderArgs {
   std::vector<std::string> conditions{"regular"};
 };
 
-/// The built-in model names map to their .cao text; anything else is a path.
-Expected<std::string> model_text(const std::string& name) {
-  if (name == "box") return synth::box_cao();
-  if (name == "ship" || name == "ship_mockup") return synth::ship_mockup_cao();
-  if (name == "flange") return synth::flange_cao();
-  if (name == "section" || name == "ship_section") return synth::ship_section_cao();
-  std::FILE* f = std::fopen(name.c_str(), "rb");
-  if (!f) return make_error(name, 0, 0, "model file not found (built-in models: box, ship, flange, section)");
-  std::string s;
-  char buf[4096];
-  std::size_t n;
-  while ((n = std::fread(buf, 1, sizeof buf, f)) > 0) s.append(buf, n);
-  std::fclose(f);
-  return s;
+/// A model as render and bench use it: loaded (built-in, .cao or mesh, scaled), with the bytes
+/// of its file and the name it gets in a rendered sequence.
+struct ModelInput {
+  std::shared_ptr<const model::Model> model;
+  std::string file_name, bytes;
+  double scale = 1.0;
+};
+
+Expected<ModelInput> model_input(const RenderArgs& a) {
+  auto scale = app::model_scale(a.units);
+  if (!scale) return scale.error();
+  auto m = app::load_model(a.model, *scale);
+  if (!m) return m.error();
+  ModelInput in;
+  in.model = *m;
+  in.scale = *scale;
+  if (auto text = app::builtin_model_text(a.model); text && !fs::exists(a.model)) {
+    in.bytes = *text;
+    in.file_name = "model.cao";
+    return in;
+  }
+  std::ifstream f(a.model, std::ios::binary);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  in.bytes = ss.str();
+  std::string ext = fs::path(a.model).extension().string();
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  in.file_name = "model" + ext;
+  return in;
+}
+
+/// A folder render may write into: never the file system's root; an existing folder only when it
+/// is empty or --force is given.
+Expected<void> check_output_folder(const std::string& out, bool force) {
+  std::error_code ec;
+  const fs::path p = fs::weakly_canonical(fs::absolute(out, ec), ec);
+  if (out.empty() || p == p.root_path())
+    return make_error(out, 0, 0, "refusing to write a sequence into the file system's root; give a folder");
+  if (!fs::exists(p, ec)) return {};
+  if (!fs::is_directory(p, ec)) return make_error(out, 0, 0, "exists and is not a folder");
+  if (!force && !fs::is_empty(p, ec))
+    return make_error(out, 0, 0, "the folder is not empty; choose a new one or add --force to write into it");
+  return {};
 }
 
 Expected<geometry::PinholeCamera> render_camera(const RenderArgs& a) {
@@ -81,9 +118,13 @@ synth::RenderOptions render_options_for(const RenderArgs& a) {
 }
 
 int cmd_render(const RenderArgs& a) {
-  auto text = model_text(a.model);
-  if (!text) {
-    fmt::print(stderr, "v4r render: error: {}\n", text.error().to_string());
+  if (auto ok = check_output_folder(a.out, a.force); !ok) {
+    fmt::print(stderr, "v4r render: error: {}\n", ok.error().to_string());
+    return 1;
+  }
+  auto in = model_input(a);
+  if (!in) {
+    fmt::print(stderr, "v4r render: error: {}\n", in.error().to_string());
     return 1;
   }
   auto cam = render_camera(a);
@@ -91,12 +132,21 @@ int cmd_render(const RenderArgs& a) {
     fmt::print(stderr, "v4r render: error: {}\n", cam.error().to_string());
     return 1;
   }
-  auto r = synth::write_sequence(a.out, *text, *cam, trajectory_for(a), render_options_for(a));
+  const auto traj = trajectory_for(a);
+  for (const std::string& w : app::check_model_size(*in->model, a.model)) fmt::print(stderr, "v4r render: warning: {}\n", w);
+  for (const std::string& w : app::check_projection(*in->model, *cam, traj.front()))
+    fmt::print(stderr, "v4r render: warning: {}\n", w);
+  app::ProgressLine bar(app::stderr_is_terminal(), a.frames);
+  auto r = synth::write_sequence(a.out, *in->model, in->file_name, in->bytes, *cam, traj, render_options_for(a),
+                                 [&bar](std::size_t done, std::size_t) { bar.update(static_cast<int>(done)); });
+  bar.finish();
   if (!r) {
     fmt::print(stderr, "v4r render: error: {}\n", r.error().to_string());
     return 1;
   }
-  fmt::print("rendered {} frames into {} (frames/, gt.csv, camera.yaml, init_pose.txt, model.cao)\n", a.frames, a.out);
+  fmt::print("rendered {} frames into {} (frames/, gt.csv, camera.yaml, init_pose.txt, {})\n", a.frames, a.out,
+             in->file_name);
+  if (in->scale != 1.0) fmt::print("track it with --model {} --mesh-scale {}\n", (fs::path(a.out) / in->file_name).string(), in->scale);
   return 0;
 }
 
@@ -104,6 +154,7 @@ int cmd_demo(const std::string& out) {
   RenderArgs ra;
   ra.model = "ship";
   ra.out = (fs::path(out) / "sequence").string();
+  ra.force = true;  // the demo's own folder: a second run replaces it
   fmt::print("v4r demo: rendering the ship-section mockup ({} frames) into {}\n", ra.frames, ra.out);
   if (int rc = cmd_render(ra); rc != 0) return rc;
   app::TrackOptions to;
@@ -121,17 +172,12 @@ int cmd_demo(const std::string& out) {
 }
 
 int cmd_bench(const RenderArgs& a, int repeat, double budget_ms) {
-  auto text = model_text(a.model);
-  if (!text) {
-    fmt::print(stderr, "v4r bench: error: {}\n", text.error().to_string());
+  auto in = model_input(a);
+  if (!in) {
+    fmt::print(stderr, "v4r bench: error: {}\n", in.error().to_string());
     return 1;
   }
-  auto m = model::parse_cao(*text, a.model);  // built-in or .cao
-  if (!m) {
-    fmt::print(stderr, "v4r bench: error: {}\n", m.error().to_string());
-    return 1;
-  }
-  auto model = std::make_shared<const model::Model>(std::move(*m));
+  const std::shared_ptr<const model::Model> model = in->model;
   const geometry::PinholeCamera cam = synth::default_camera();
   const auto traj = trajectory_for(a);
   synth::RenderOptions ro = render_options_for(a);
@@ -197,27 +243,47 @@ Expected<void> configure(pipeline::CycleParams& params, const std::string& confi
   return {};
 }
 
+/// --mesh-scale and --model-units on a subcommand that reads a model.
+void add_units_options(CLI::App* cmd, app::ModelUnitsArgs& u) {
+  cmd->add_option("--mesh-scale", u.mesh_scale, "Model units to metres: 0.001 for millimetres (meshes and .cao)")
+      ->check(CLI::Range(1e-9, 1e9));
+  cmd->add_option("--model-units", u.units, "Units of the model file: mm, cm or m (the readable --mesh-scale)")
+      ->check(CLI::IsMember({"mm", "cm", "m"}));
+}
+
+constexpr const char* kModelHelp = "box, ship, flange, section, a .cao file or a mesh (.obj, .ply, .stl)";
+
 }  // namespace
 
 int main(int argc, char** argv) {
   try {
     CLI::App app{"v4r: real-time 6-DoF tracking of CAD-modelled objects"};
     app.require_subcommand(1);
+    app.set_version_flag("--version", std::string("v4r ") + V4R_VERSION);
+    app.footer("`v4r help COMMAND` or `v4r COMMAND --help` for a command's options.");
 
     app::TrackOptions to;
+    app::ModelUnitsArgs track_units;
     std::string init_pose_str;
+    bool no_warnings = false, progress = false;
     auto* track = app.add_subcommand("track", "Track an object through an image sequence or video");
-    track->add_option("--model", to.model_path, "Model file (.cao)")->required();
-    track->add_option("--camera", to.camera_path, "Calibration (OpenCV or ROS camera_info YAML)")->required();
+    track->add_option("--model", to.model_path, kModelHelp)->required();
+    track->add_option("--camera", to.camera_path, "Calibration: OpenCV YAML/XML, ROS camera_info YAML or ViSP XML")
+        ->required();
     track->add_option("--input", to.input, "Image folder, printf pattern (frames/%06d.png) or video")->required();
     auto* ipf = track->add_option("--init-pose-file", to.init_pose_file, "File with 'tx ty tz rx ry rz' (T_cam_obj)");
     auto* ip = track->add_option("--init-pose", init_pose_str, "Initial T_cam_obj: \"tx ty tz rx ry rz\" (m, rad)");
     ipf->excludes(ip);
-    track->add_option("--output", to.output_csv, "Pose CSV to write")->required();
+    track->add_option("--output,--out", to.output_csv, "Pose CSV to write")->required();
     track->add_option("--overlay", to.overlay, "Overlay video (.avi/.mp4) or folder of PNGs");
     track->add_option("--gt", to.gt_csv, "Ground-truth CSV: print accuracy");
-    track->add_option("--fps", to.fps, "Input frame rate (time stamps for the motion filter)")->check(CLI::Range(0.0, 10000.0))->capture_default_str();
-    track->add_option("--mesh-scale", to.mesh_scale, "Mesh models: file units to metres (0.001 for mm)")->check(CLI::Range(1e-9, 1e9));
+    track->add_option("--fps", to.fps,
+                      "Input frame rate for the time stamps (default: the video's own rate, else 1 / filter.frame_interval)")
+        ->check(CLI::Range(1e-3, 10000.0));
+    track->add_flag("--file-times", to.file_times, "Time stamps from the image files' modification times");
+    add_units_options(track, track_units);
+    track->add_flag("--no-warnings", no_warnings, "Skip the plausibility checks of pose, units and framing");
+    track->add_flag("--progress", progress, "Show the progress line even when stderr is not a terminal");
     std::string config_file;
     std::vector<std::string> sets;
     track->add_option("--config", config_file, "YAML file of tracker parameters (see `v4r config`)");
@@ -225,8 +291,10 @@ int main(int argc, char** argv) {
 
     RenderArgs ra;
     auto* render = app.add_subcommand("render", "Render a synthetic sequence with ground truth");
-    render->add_option("--model", ra.model, "box, ship, flange, section, or a .cao file")->capture_default_str();
-    render->add_option("--out", ra.out, "Output folder")->required();
+    render->add_option("--model", ra.model, kModelHelp)->capture_default_str();
+    add_units_options(render, ra.units);
+    render->add_option("--output,--out", ra.out, "Output folder (new or empty, see --force)")->required();
+    render->add_flag("--force", ra.force, "Write into a folder that is not empty");
     render->add_option("--frames", ra.frames, "Number of frames")->check(CLI::Range(1, 100000))->capture_default_str();
     render->add_option("--speed", ra.speed, "Motion speed factor")->check(CLI::Range(0.0, 100.0))->capture_default_str();
     render->add_option("--distance", ra.distance, "Initial distance, m")->check(CLI::Range(0.05, 100.0))->capture_default_str();
@@ -243,12 +311,13 @@ int main(int argc, char** argv) {
 
     std::string demo_out = "build/demo";
     auto* demo = app.add_subcommand("demo", "Render the ship mockup, track it, print accuracy and timing");
-    demo->add_option("--out", demo_out, "Output folder")->capture_default_str();
+    demo->add_option("--output,--out", demo_out, "Output folder")->capture_default_str();
 
     RenderArgs ba;
     int repeat = 5;
     auto* bench = app.add_subcommand("bench", "Benchmark the vision cycle on a rendered sequence (in memory)");
-    bench->add_option("--model", ba.model, "box, ship, flange, section, or a .cao file")->capture_default_str();
+    bench->add_option("--model", ba.model, kModelHelp)->capture_default_str();
+    add_units_options(bench, ba.units);
     bench->add_option("--condition", ba.conditions, "Rendering conditions (see render)")
         ->delimiter(',')
         ->check(CLI::IsMember(synth::condition_names()));
@@ -268,8 +337,14 @@ int main(int argc, char** argv) {
     auto* serve = app.get_subcommand("serve");
 
     std::string inspect_path;
-    auto* inspect = app.add_subcommand("inspect-model", "Load a model and print its features");
-    inspect->add_option("model", inspect_path, "Model file")->required();
+    app::ModelUnitsArgs inspect_units;
+    bool inspect_verbose = false;
+    auto* inspect = app.add_subcommand("inspect-model", "Load a model and print its features, size and units");
+    auto* inspect_pos = inspect->add_option("model", inspect_path, kModelHelp);
+    auto* inspect_opt = inspect->add_option("--model", inspect_path, kModelHelp);
+    inspect_pos->excludes(inspect_opt);
+    add_units_options(inspect, inspect_units);
+    inspect->add_flag("--verbose,-v", inspect_verbose, "List every face, line and circle");
     model::CaoReadOptions cao_options;
     inspect->add_option("--max-off-plane", cao_options.max_off_plane,
                         "Refuse .cao faces whose points are farther than this fraction of the face's diameter from "
@@ -277,18 +352,53 @@ int main(int argc, char** argv) {
         ->check(CLI::Range(0.0, 1.0))
         ->capture_default_str();
 
+    std::string help_topic;
+    auto* help = app.add_subcommand("help", "Print the help of a command: v4r help track");
+    help->add_option("command", help_topic, "Command name");
+
     CLI11_PARSE(app, argc, argv);
     ra.noise_given = noise_opt->count() > 0;
+    ra.units.mesh_scale_given = render->get_option("--mesh-scale")->count() > 0;
+    ba.units.mesh_scale_given = bench->get_option("--mesh-scale")->count() > 0;
+    track_units.mesh_scale_given = track->get_option("--mesh-scale")->count() > 0;
+    inspect_units.mesh_scale_given = inspect->get_option("--mesh-scale")->count() > 0;
 
+    if (*help) {
+      if (help_topic.empty()) {
+        fmt::print("{}", app.help());
+        return 0;
+      }
+      CLI::App* sub = nullptr;
+      try {
+        sub = app.get_subcommand(help_topic);
+      } catch (const CLI::OptionNotFound&) {
+        sub = nullptr;
+      }
+      if (sub == nullptr || sub == help) {
+        fmt::print(stderr, "v4r help: error: no command '{}' (track, render, demo, bench, config, serve, inspect-model)\n",
+                   help_topic);
+        return 1;
+      }
+      fmt::print("{}", sub->help());
+      return 0;
+    }
     if (*track) {
       if (!init_pose_str.empty()) {
-        auto p = io::parse_pose(init_pose_str, "--init-pose");
+        auto p = io::parse_pose_numbers(init_pose_str, "--init-pose");
         if (!p) {
           fmt::print(stderr, "v4r track: error: {}\n", p.error().to_string());
           return 1;
         }
         to.init_pose = *p;
       }
+      auto scale = app::model_scale(track_units);
+      if (!scale) {
+        fmt::print(stderr, "v4r track: error: {}\n", scale.error().to_string());
+        return 1;
+      }
+      to.mesh_scale = *scale;
+      to.warnings = !no_warnings;
+      if (progress) to.progress = 1;
       if (auto c = configure(to.params, config_file, sets); !c) {
         fmt::print(stderr, "v4r track: error: {}\n", c.error().to_string());
         return 1;
@@ -309,18 +419,16 @@ int main(int argc, char** argv) {
     if (*demo) return cmd_demo(demo_out);
     if (*bench) return cmd_bench(ba, repeat, bench_budget);
     if (*inspect) {
-      std::vector<Error> warnings;
-      auto m = app::load_model(inspect_path, 1.0, cao_options, &warnings);
-      for (const Error& w : warnings) fmt::print(stderr, "v4r inspect-model: warning: {}\n", w.to_string());
-      if (!m) {
-        fmt::print(stderr, "v4r inspect-model: error: {}\n", m.error().to_string());
+      if (inspect_path.empty()) {
+        fmt::print(stderr, "v4r inspect-model: error: give a model: v4r inspect-model FILE (or --model FILE)\n");
         return 1;
       }
-      const model::Model& mm = **m;
-      fmt::print("model {}: {} junctions, {} lines, {} arcs, {} faces, {} cylinders, bounding radius {:.4f} m\n",
-                 mm.name(), mm.junctions().size(), mm.lines().size(), mm.arcs().size(), mm.faces().size(),
-                 mm.cylinders().size(), mm.bounding_radius());
-      return 0;
+      auto scale = app::model_scale(inspect_units);
+      if (!scale) {
+        fmt::print(stderr, "v4r inspect-model: error: {}\n", scale.error().to_string());
+        return 1;
+      }
+      return app::cmd_inspect(inspect_path, *scale, inspect_verbose, cao_options);
     }
     return 0;
   } catch (const std::exception& e) {

@@ -1,6 +1,7 @@
 // v4r - robust model-based object tracking. MIT licence.
 #include <cstdio>
 #include <filesystem>
+#include <optional>
 #include <fstream>
 
 #include <fmt/format.h>
@@ -9,6 +10,8 @@
 #include <opencv2/videoio.hpp>
 
 #include "app.hpp"
+#include "plausibility.hpp"
+#include "progress.hpp"
 #include "v4r/io/camera_io.hpp"
 #include "v4r/io/frame_source.hpp"
 #include "v4r/io/pose_io.hpp"
@@ -21,39 +24,18 @@ namespace v4r::app {
 
 namespace fs = std::filesystem;
 
-Expected<std::shared_ptr<const model::Model>> load_model(const std::string& path, double mesh_scale,
-                                                         const model::CaoReadOptions& cao, std::vector<Error>* warnings) {
-  std::string ext = fs::path(path).extension().string();
-  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  if (!fs::exists(path)) return make_error(path, 0, 0, "model file not found");
-  Expected<model::Model> m = make_error("");
-  if (ext == ".cao") {
-    m = model::load_cao(path, cao, warnings);
-  } else if (ext == ".obj" || ext == ".ply" || ext == ".stl" || ext == ".off" || ext == ".dae" || ext == ".fbx" ||
-             ext == ".3ds" || ext == ".gltf" || ext == ".glb") {
-    model::MeshImportOptions mo;
-    mo.scale = mesh_scale;
-    m = model::load_mesh(path, mo);
-  } else {
-    return make_error(path, 0, 0, fmt::format("unsupported model format '{}' (supported: .cao, .obj, .ply, .stl)", ext));
-  }
-  if (!m) return m.error();
-  if (m->lines().empty() && m->arcs().empty()) return make_error(path, 0, 0, "model has no edges to track");
-  return std::shared_ptr<const model::Model>(std::make_shared<model::Model>(std::move(*m)));
-}
-
 namespace {
 
 /// Writes overlay frames into a video (.avi, .mp4, .mkv) or a folder of PNGs.
 class OverlayWriter {
  public:
-  Expected<void> open(const std::string& path, cv::Size size) {
+  Expected<void> open(const std::string& path, cv::Size size, double fps) {
     path_ = path;
     const std::string ext = fs::path(path).extension().string();
     if (ext == ".avi" || ext == ".mp4" || ext == ".mkv") {
       const int fourcc = ext == ".mp4" ? cv::VideoWriter::fourcc('m', 'p', '4', 'v') : cv::VideoWriter::fourcc('M', 'J', 'P', 'G');
       if (fs::path(path).has_parent_path()) fs::create_directories(fs::path(path).parent_path());
-      if (!video_.open(path, fourcc, 30.0, size)) return make_error(path, 0, 0, "cannot open overlay video for writing");
+      if (!video_.open(path, fourcc, fps, size)) return make_error(path, 0, 0, "cannot open overlay video for writing");
       return {};
     }
     std::error_code ec;
@@ -78,27 +60,66 @@ class OverlayWriter {
   cv::VideoWriter video_;
 };
 
+/// Edges and circles the pose solve kept (found, not rejected as outliers): `features_used` as the
+/// protocol's SystemStatus and the overlay count it. The solver's observations are counted apart
+/// (lines_used, circle_points_used, junctions_used).
+int features_used(const scene::Scene& scene) {
+  int n = 0;
+  for (const scene::Object& o : scene.objects())
+    for (const scene::View& v : o.views) {
+      for (const scene::LineFeature& f : v.lines)
+        if (f.visible && !f.ambiguous && !f.dropped && f.status == scene::FeatureStatus::kFound) ++n;
+      for (const scene::ArcFeature& a : v.arcs)
+        if (a.visible && !a.dropped && a.status == scene::FeatureStatus::kFound) ++n;
+    }
+  return n;
+}
+
+/// How frames are stamped: the text says where the times come from.
+struct Timing {
+  double fps = 0.0;  ///< frames per second, or 0 for file times
+  bool file_times = false;
+  std::string source;
+};
+
+Timing choose_timing(const TrackOptions& opt, const io::FrameSource& src) {
+  if (opt.fps > 0.0) return {opt.fps, false, "--fps"};
+  if (opt.file_times) return {0.0, true, "image file times"};
+  if (src.nominal_fps() > 0.0) return {src.nominal_fps(), false, "the video's frame rate"};
+  return {1.0 / opt.params.frame_interval_s, false, "filter.frame_interval"};
+}
+
 }  // namespace
 
 Expected<TrackSummary> run_track(const TrackOptions& opt) {
   auto model = load_model(opt.model_path, opt.mesh_scale);
   if (!model) return model.error();
-  auto cam = io::load_camera(opt.camera_path);
+  auto cam = io::load_camera(opt.camera_path, io::CameraFileOptions{.size_optional = true});
   if (!cam) return cam.error();
-  geometry::SE3 init;
+  io::PoseNumbers numbers{};
+  std::string pose_source;
   if (opt.init_pose) {
-    init = *opt.init_pose;
+    numbers = *opt.init_pose;
+    pose_source = "--init-pose";
   } else if (!opt.init_pose_file.empty()) {
-    auto p = io::load_pose_file(opt.init_pose_file);
+    auto p = io::load_pose_numbers(opt.init_pose_file);
     if (!p) return p.error();
-    init = *p;
+    numbers = *p;
+    pose_source = opt.init_pose_file;
   } else {
     return make_error("an initial pose is needed: --init-pose-file FILE or --init-pose \"tx ty tz rx ry rz\"");
   }
+  const geometry::SE3 init = io::pose_from_numbers(numbers);
   if (init.translation().z() <= 0.0)
     return make_error("the initial pose puts the object behind the camera (tz <= 0)");
+  std::vector<std::string> warnings;
+  if (opt.warnings) {
+    for (auto& w : check_model_size(**model, opt.model_path)) warnings.push_back(std::move(w));
+    for (auto& w : check_pose(numbers, pose_source)) warnings.push_back(std::move(w));
+  }
   auto source = io::FrameSource::open(opt.input);
   if (!source) return source.error();
+  const Timing timing = choose_timing(opt, **source);
 
   std::FILE* csv = nullptr;
   if (!opt.output_csv.empty()) {
@@ -111,7 +132,7 @@ Expected<TrackSummary> run_track(const TrackOptions& opt) {
     std::fprintf(csv,
                  "frame,tx,ty,tz,qw,qx,qy,qz,cycle_ms,status,quality,features_visible,features_found,features_used,"
                  "outliers,rms_px,lines_used,circle_points_used,junctions_used,degrade_level,"
-                 "f_tx,f_ty,f_tz,f_qw,f_qx,f_qy,f_qz,vx,vy,vz,wx,wy,wz\n");
+                 "f_tx,f_ty,f_tz,f_qw,f_qx,f_qy,f_qz,vx,vy,vz,wx,wy,wz,stamp_s\n");
   }
   struct Closer {
     std::FILE* f;
@@ -120,19 +141,35 @@ Expected<TrackSummary> run_track(const TrackOptions& opt) {
     }
   } closer{csv};
 
-  pipeline::SingleObjectTracker tracker(*model, *cam, opt.params);
-  tracker.set_pose(init);
+  std::optional<pipeline::SingleObjectTracker> tracker;
   OverlayWriter overlay;
   TrackSummary s;
+  s.timing = timing.source;
+  s.fps = timing.fps;
+  const bool progress = opt.progress > 0 || (opt.progress < 0 && stderr_is_terminal());
+  ProgressLine bar(progress && !opt.quiet, (*source)->size_hint());
   cv::Mat frame, grey;
+  double first_file_time = -1.0;
   for (int i = 0;; ++i) {
     auto more = (*source)->next(frame);
     if (!more) return more.error();
     if (!*more) break;
+    if (i == 0 && cam->width == 0) {  // a calibration without the image size: the first image's
+      cam->width = frame.cols;
+      cam->height = frame.rows;
+    }
     if (frame.cols != cam->width || frame.rows != cam->height)
       return make_error((*source)->current_name(), 0, 0,
                         fmt::format("image is {}x{} but the camera calibration {} is {}x{}", frame.cols, frame.rows,
                                     opt.camera_path, cam->width, cam->height));
+    if (i == 0) {
+      if (opt.warnings)
+        for (auto& w : check_projection(**model, *cam, init)) warnings.push_back(std::move(w));
+      for (const std::string& w : warnings) fmt::print(stderr, "v4r track: warning: {}\n", w);
+      s.warnings = warnings.size();
+      tracker.emplace(*model, *cam, opt.params);
+      tracker->set_pose(init);
+    }
     if (frame.channels() == 3) {
       cv::cvtColor(frame, grey, cv::COLOR_BGR2GRAY);
     } else if (frame.channels() == 4) {
@@ -140,8 +177,14 @@ Expected<TrackSummary> run_track(const TrackOptions& opt) {
     } else {
       grey = frame;
     }
-    const double stamp = opt.fps > 0 ? i / opt.fps : -1.0;
-    const pipeline::FrameResult r = tracker.track(io::as_view(grey), io::as_colour_view(frame), stamp);
+    double stamp = i / timing.fps;
+    if (timing.file_times) {
+      const double t = (*source)->file_time_s();
+      if (t < 0.0) return make_error((*source)->current_name(), 0, 0, "no file time for this frame (--file-times)");
+      if (first_file_time < 0.0) first_file_time = t;
+      stamp = t - first_file_time;
+    }
+    const pipeline::FrameResult r = tracker->track(io::as_view(grey), io::as_colour_view(frame), stamp);
     s.poses.push_back(r.T_cam_obj);
     s.cycle_ms.push_back(r.cycle_ms);
     s.visibility_ms.push_back(r.visibility_ms);
@@ -151,19 +194,19 @@ Expected<TrackSummary> run_track(const TrackOptions& opt) {
     if (r.report.status == scene::TrackStatus::kLost) ++s.lost;
     if (r.report.status == scene::TrackStatus::kDegraded) ++s.degraded;
     if (csv) {
-      const auto& q = r.T_cam_obj.quaternion();
+      const Eigen::Quaterniond q = io::canonical(r.T_cam_obj.quaternion());
       const auto& t = r.T_cam_obj.translation();
-      const auto& fq = r.T_cam_obj_filtered.quaternion();
+      const Eigen::Quaterniond fq = io::canonical(r.T_cam_obj_filtered.quaternion());
       const auto& ft = r.T_cam_obj_filtered.translation();
       const auto& v = r.velocity;
       std::fprintf(csv,
                    "%d,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.4f,%s,%.3f,%d,%d,%d,%d,%.3f,%d,%d,%d,%d,"
-                   "%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g\n",
+                   "%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6f\n",
                    i, t.x(), t.y(), t.z(), q.w(), q.x(), q.y(), q.z(), r.cycle_ms, scene::to_string(r.report.status),
-                   r.report.quality, r.report.features_visible, r.report.features_found, r.report.features_used,
+                   r.report.quality, r.report.features_visible, r.report.features_found, features_used(tracker->scene()),
                    r.report.outliers, r.report.rms_px, r.report.lines_used, r.report.circle_points_used,
                    r.report.junctions_used, r.degrade_level, ft.x(), ft.y(), ft.z(), fq.w(), fq.x(), fq.y(), fq.z(),
-                   v[0], v[1], v[2], v[3], v[4], v[5]);
+                   v[0], v[1], v[2], v[3], v[4], v[5], stamp);
     }
     if (!opt.overlay.empty()) {
       cv::Mat vis;
@@ -173,19 +216,23 @@ Expected<TrackSummary> run_track(const TrackOptions& opt) {
         cv::cvtColor(grey, vis, cv::COLOR_GRAY2BGR);
       }
       if (i == 0) {
-        auto o = overlay.open(opt.overlay, vis.size());
+        auto o = overlay.open(opt.overlay, vis.size(), timing.fps > 0.0 ? timing.fps : 1.0 / opt.params.frame_interval_s);
         if (!o) return o.error();
       }
       pipeline::CycleReport rep;
       rep.frame = i;
       rep.cycle_ms = r.cycle_ms;
       rep.objects.push_back(r.report);
-      viz::draw_overlay(vis, tracker.scene(), tracker.cycle(), 0, rep);
+      viz::OverlayStyle style;
+      style.object_label = fs::path(opt.model_path).stem().string();
+      viz::draw_overlay(vis, tracker->scene(), tracker->cycle(), 0, rep, style);
       auto w = overlay.write(vis, i);
       if (!w) return w.error();
     }
     ++s.frames;
+    bar.update(s.frames, s.lost);
   }
+  bar.finish();
   if (s.frames == 0) return make_error(opt.input, 0, 0, "the input holds no frames");
   return s;
 }
@@ -210,11 +257,7 @@ void print_report(const TrackSummary& s, const std::vector<geometry::SE3>* truth
 }
 
 int cmd_track(const TrackOptions& opt) {
-  auto s = run_track(opt);
-  if (!s) {
-    fmt::print(stderr, "v4r track: error: {}\n", s.error().to_string());
-    return 1;
-  }
+  // The ground truth is read first: a missing or malformed file is found before the tracking.
   std::vector<geometry::SE3> truth;
   if (!opt.gt_csv.empty()) {
     auto rows = io::load_pose_csv(opt.gt_csv);
@@ -224,7 +267,23 @@ int cmd_track(const TrackOptions& opt) {
     }
     for (const auto& r : *rows) truth.push_back(r.T_cam_obj);
   }
-  if (!opt.quiet) print_report(*s, opt.gt_csv.empty() ? nullptr : &truth);
+  auto s = run_track(opt);
+  if (!s) {
+    fmt::print(stderr, "v4r track: error: {}\n", s.error().to_string());
+    return 1;
+  }
+  if (!opt.quiet) {
+    print_report(*s, opt.gt_csv.empty() ? nullptr : &truth);
+    const std::string time = s->fps > 0.0 ? fmt::format("{} fps ({})", s->fps, s->timing) : s->timing;
+    fmt::print("time stamps: {}\n", time);
+    if (!opt.output_csv.empty()) fmt::print("wrote {} ({} rows)\n", opt.output_csv, s->frames);
+    if (!opt.overlay.empty()) fmt::print("wrote {} (overlay)\n", opt.overlay);
+  }
+  if (s->lost == s->frames) {
+    fmt::print(stderr, "v4r track: error: the object was lost on every frame ({} of {}){}\n", s->lost, s->frames,
+               s->warnings > 0 ? "; see the warnings above" : "; check the initial pose, the model's units and the camera");
+    return 3;
+  }
   return 0;
 }
 

@@ -82,11 +82,14 @@ class V4rClient:
         self.sock.sendall(line.encode("ascii") + b"\n")
         return self._wait_reply()
 
-    def add_model(self, obj, data, fmt="cao"):
-        """`AddModel object=OBJ format=FMT bytes=N` followed by the model file's bytes."""
+    def add_model(self, obj, data, fmt="cao", scale=1.0):
+        """`AddModel object=OBJ format=FMT [scale=S] bytes=N` followed by the model file's bytes;
+        scale: model units to metres (0.001 for a model in millimetres)."""
         if isinstance(data, str):
             data = data.encode("utf-8")
-        self.sock.sendall(b"AddModel object=%s format=%s bytes=%d\n" % (obj.encode(), fmt.encode(), len(data)) + data)
+        extra = b"" if scale == 1.0 else b" scale=%s" % repr(float(scale)).encode()
+        self.sock.sendall(b"AddModel object=%s format=%s%s bytes=%d\n" % (obj.encode(), fmt.encode(), extra, len(data))
+                          + data)
         return self._wait_reply()
 
     def set_pose(self, obj, t, r):
@@ -133,6 +136,7 @@ def main():
     ap.add_argument("--token", default=None)
     ap.add_argument("--object", default="object")
     ap.add_argument("--model", required=True, help=".cao (or .obj/.ply/.stl) file sent inline")
+    ap.add_argument("--model-units", choices=["mm", "cm", "m"], default="m", help="units of the model file")
     ap.add_argument("--pose", required=True, help='initial T_cam_obj "tx ty tz rx ry rz" (m, rad)')
     ap.add_argument("--start", action="store_true", help="send Start (for a server started with --paused)")
     ap.add_argument("--frames", type=int, default=0, help="stop after this many poses (0: run until closed)")
@@ -146,8 +150,9 @@ def main():
         data = f.read()
     try:
         with V4rClient(args.host, args.port, token=args.token) as c:
-            c.request("AddObject name=" + args.object)
-            print(c.add_model(args.object, data, fmt))
+            # The object is this client's: removed when it disconnects, so that a second run can add it again.
+            c.request("AddObject name=%s lifetime=connection" % args.object)
+            print(c.add_model(args.object, data, fmt, {"mm": 0.001, "cm": 0.01, "m": 1.0}[args.model_units]))
             c.set_pose(args.object, pose[:3], pose[3:])
             c.request("Subscribe what=ObjectPose")
             if args.start:

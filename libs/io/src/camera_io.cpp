@@ -7,6 +7,10 @@
 
 #include "v4r/io/camera_io.hpp"
 
+#include <cctype>
+
+#include "camera_xml.hpp"
+
 #include <fmt/format.h>
 #include <yaml-cpp/yaml.h>
 
@@ -252,10 +256,7 @@ Expected<std::array<double, 5>> read_distortion(const Reader& r, const std::stri
                                   "rational_polynomial with k4 = k5 = k6 = 0, none)",
                                   model_node.Scalar()));
   }
-  if (!node.IsDefined()) {
-    if (none) return dist;
-    return r.missing({"distortion_coefficients", "D", "d"});
-  }
+  if (!node.IsDefined()) return dist;  // no coefficients: no distortion
   Expected<Reader::Matrix> m = r.matrix(key, node);
   if (!m) return m.error();
   if (m->rows >= 0 && m->rows != 1 && m->cols != 1 && !m->values.empty()) {
@@ -291,14 +292,17 @@ Expected<std::array<double, 5>> read_distortion(const Reader& r, const std::stri
   return dist;
 }
 
-Expected<geometry::PinholeCamera> parse_root(const Reader& r) {
+Expected<geometry::PinholeCamera> parse_root(const Reader& r, const CameraFileOptions& opt) {
   geometry::PinholeCamera cam;
-  Expected<int> w = r.image_side({"image_width", "width"});
-  if (!w) return w.error();
-  Expected<int> h = r.image_side({"image_height", "height"});
-  if (!h) return h.error();
-  cam.width = *w;
-  cam.height = *h;
+  const bool no_size = r.find({"image_width", "width"}).first.empty() && r.find({"image_height", "height"}).first.empty();
+  if (!(opt.size_optional && no_size)) {
+    Expected<int> w = r.image_side({"image_width", "width"});
+    if (!w) return w.error();
+    Expected<int> h = r.image_side({"image_height", "height"});
+    if (!h) return h.error();
+    cam.width = *w;
+    cam.height = *h;
+  }
 
   const auto [k_key, k_node] = r.find({"camera_matrix", "K", "k"});
   if (k_key.empty()) return r.missing({"camera_matrix", "K", "k"});
@@ -371,7 +375,12 @@ std::string real(double v) {
 
 }  // namespace
 
-Expected<geometry::PinholeCamera> parse_camera(const std::string& text, const std::string& source) {
+Expected<geometry::PinholeCamera> parse_camera(const std::string& text, const std::string& source,
+                                               const CameraFileOptions& opt) {
+  std::size_t first = 0;
+  if (text.compare(0, 3, "\xEF\xBB\xBF") == 0) first = 3;  // UTF-8 byte order mark
+  while (first < text.size() && std::isspace(static_cast<unsigned char>(text[first]))) ++first;
+  if (first < text.size() && text[first] == '<') return parse_camera_xml(text, source, opt);
   try {
     const YAML::Node root = YAML::Load(to_plain_yaml(text));
     if (!root.IsMap()) {
@@ -383,7 +392,7 @@ Expected<geometry::PinholeCamera> parse_camera(const std::string& text, const st
                    {}};
     }
     const Reader reader(source, root);
-    return parse_root(reader);
+    return parse_root(reader, opt);
   } catch (const YAML::Exception& e) {
     Error err{e.msg, source, 0, 0, {}};
     if (!e.mark.is_null()) {
@@ -396,10 +405,10 @@ Expected<geometry::PinholeCamera> parse_camera(const std::string& text, const st
   }
 }
 
-Expected<geometry::PinholeCamera> load_camera(const std::string& path) {
+Expected<geometry::PinholeCamera> load_camera(const std::string& path, const CameraFileOptions& opt) {
   Expected<std::string> text = read_text(path);
   if (!text) return text.error();
-  return parse_camera(*text, path);
+  return parse_camera(*text, path, opt);
 }
 
 Expected<void> save_camera_opencv(const std::string& path, const geometry::PinholeCamera& cam) {

@@ -15,6 +15,8 @@
 
 #include <algorithm>
 #include <array>
+#include <chrono>
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <opencv2/imgcodecs.hpp>
@@ -188,6 +190,14 @@ class FileListSource final : public FrameSource {
   }
   [[nodiscard]] std::string current_name() const override { return name_; }
   [[nodiscard]] int size_hint() const override { return static_cast<int>(files_.size()); }
+  [[nodiscard]] double file_time_s() const override {
+    std::error_code ec;
+    const fs::file_time_type t = fs::last_write_time(name_, ec);
+    if (ec) return -1.0;
+    const auto since = std::chrono::duration_cast<std::chrono::nanoseconds>(
+        std::chrono::file_clock::to_sys(t).time_since_epoch());
+    return static_cast<double>(since.count()) * 1e-9;
+  }
 
  private:
   std::vector<std::string> files_;
@@ -201,6 +211,8 @@ class VideoSource final : public FrameSource {
   VideoSource(std::unique_ptr<cv::VideoCapture> cap, std::string path) : cap_(std::move(cap)), path_(std::move(path)) {
     const double n = cap_->get(cv::CAP_PROP_FRAME_COUNT);
     count_ = (n > 0.0 && n < 1e9) ? static_cast<int>(n) : -1;
+    const double fps = cap_->get(cv::CAP_PROP_FPS);
+    fps_ = (std::isfinite(fps) && fps > 0.0 && fps <= 10000.0) ? fps : 0.0;
   }
 
   Expected<bool> next(cv::Mat& bgr) override {
@@ -221,9 +233,11 @@ class VideoSource final : public FrameSource {
   }
   [[nodiscard]] std::string current_name() const override { return name_; }
   [[nodiscard]] int size_hint() const override { return count_; }
+  [[nodiscard]] double nominal_fps() const override { return fps_; }
 
  private:
   std::unique_ptr<cv::VideoCapture> cap_;
+  double fps_ = 0.0;
   std::string path_;
   std::string name_;
   int index_ = 0;

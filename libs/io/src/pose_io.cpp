@@ -116,7 +116,13 @@ bool skippable(std::string_view line) {
 
 }  // namespace
 
-Expected<geometry::SE3> parse_pose(const std::string& text, const std::string& source) {
+Eigen::Quaterniond canonical(const Eigen::Quaterniond& q) {
+  if (q.w() > 0.0 || (q.w() == 0.0 && (q.x() > 0.0 || (q.x() == 0.0 && (q.y() > 0.0 || (q.y() == 0.0 && q.z() >= 0.0))))))
+    return q;
+  return Eigen::Quaterniond(-q.w(), -q.x(), -q.y(), -q.z());
+}
+
+Expected<PoseNumbers> parse_pose_numbers(const std::string& text, const std::string& source) {
   constexpr std::array<const char*, 6> kNames{"tx", "ty", "tz", "rx", "ry", "rz"};
   std::array<double, 6> v{};
   std::size_t count = 0;
@@ -163,13 +169,29 @@ Expected<geometry::SE3> parse_pose(const std::string& text, const std::string& s
     return Error{fmt::format("expected six numbers (tx ty tz rx ry rz), got {}; {} is missing", count, kNames[count]),
                  source, last_line, last_end_column, kNames[count]};
   }
+  return v;
+}
+
+geometry::SE3 pose_from_numbers(const PoseNumbers& v) {
   return geometry::SE3::from_rvec(Eigen::Vector3d(v[0], v[1], v[2]), Eigen::Vector3d(v[3], v[4], v[5]));
 }
 
-Expected<geometry::SE3> load_pose_file(const std::string& path) {
+Expected<geometry::SE3> parse_pose(const std::string& text, const std::string& source) {
+  Expected<PoseNumbers> v = parse_pose_numbers(text, source);
+  if (!v) return v.error();
+  return pose_from_numbers(*v);
+}
+
+Expected<PoseNumbers> load_pose_numbers(const std::string& path) {
   Expected<std::string> text = read_text(path);
   if (!text) return text.error();
-  return parse_pose(*text, path);
+  return parse_pose_numbers(*text, path);
+}
+
+Expected<geometry::SE3> load_pose_file(const std::string& path) {
+  Expected<PoseNumbers> v = load_pose_numbers(path);
+  if (!v) return v.error();
+  return pose_from_numbers(*v);
 }
 
 Expected<void> save_pose_file(const std::string& path, const geometry::SE3& T) {
@@ -259,7 +281,7 @@ Expected<void> save_pose_csv(const std::string& path, const std::vector<PoseRow>
   std::string out = "frame,tx,ty,tz,qw,qx,qy,qz\n";
   for (const PoseRow& r : rows) {
     const Eigen::Vector3d& t = r.T_cam_obj.translation();
-    const Eigen::Quaterniond& q = r.T_cam_obj.quaternion();
+    const Eigen::Quaterniond q = canonical(r.T_cam_obj.quaternion());
     if (!t.allFinite() || !q.coeffs().allFinite()) {
       return Error{fmt::format("pose of frame {} is not finite", r.frame), path, 0, 0, {}};
     }

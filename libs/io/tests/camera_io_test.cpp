@@ -301,7 +301,6 @@ INSTANTIATE_TEST_SUITE_P(
         Malformed{"missing_camera_matrix", kHead + kGoodD, "camera_matrix", 0, 0, "missing key"},
         Malformed{"missing_height", "%YAML:1.0\n---\nimage_width: 640\n" + kGoodK + kGoodD, "image_height", 0, 0,
                   "missing key 'image_height'"},
-        Malformed{"missing_distortion", kHead + kGoodK, "distortion_coefficients", 0, 0, "missing key"},
         Malformed{"missing_data", kHead + "camera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n" + kGoodD,
                   "camera_matrix", 6, 4, "missing 'data'"},
         Malformed{"wrong_matrix_size", with_k("600., 0., 319.5, 0., 0., 600., 239.5, 0., 0., 0., 1., 0.", "3", "4"),

@@ -191,7 +191,10 @@ TEST(PoseIo, CsvRoundTrip) {
   for (std::size_t i = 0; i < rows.size(); ++i) {
     EXPECT_EQ((*back)[i].frame, rows[i].frame);
     EXPECT_EQ((*back)[i].T_cam_obj.translation(), rows[i].T_cam_obj.translation());
-    EXPECT_LT(((*back)[i].T_cam_obj.quaternion().coeffs() - rows[i].T_cam_obj.quaternion().coeffs()).norm(), 1e-15);
+    // Written with qw >= 0: the same rotation, exactly, up to the quaternion's sign.
+    EXPECT_LT(((*back)[i].T_cam_obj.quaternion().coeffs() - canonical(rows[i].T_cam_obj.quaternion()).coeffs()).norm(),
+              1e-15);
+    EXPECT_GE((*back)[i].T_cam_obj.quaternion().w(), 0.0);
   }
 }
 

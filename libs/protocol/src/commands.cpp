@@ -31,13 +31,30 @@ ParseResult parse_name_only(Args& a, std::string_view key, bool remove) {
   return done(a, AddObject{std::move(n)});
 }
 
-ParseResult parse_add_object(Args& a) { return parse_name_only(a, "name", false); }
+ParseResult parse_add_object(Args& a) {
+  a.check_keys({"name", "lifetime"});
+  a.require({"name"});
+  AddObject c;
+  c.name = a.name("name");
+  if (a.has("lifetime")) c.connection_lifetime = a.word("lifetime", {"server", "connection"}) == 1;
+  return done(a, std::move(c));
+}
 ParseResult parse_remove_object(Args& a) { return parse_name_only(a, "name", true); }
 
 ModelFormat read_format(Args& a) { return static_cast<ModelFormat>(a.word("format", {"cao", "obj", "ply", "stl"})); }
 
+/// scale= of AddModel: model units to metres (0.001 for millimetres), default 1.
+double read_scale(Args& a) {
+  if (!a.has("scale")) return 1.0;
+  const double s = a.number("scale");
+  if (a.ok() && !(s > 0.0 && s <= 1e6))
+    a.fail(code::kOutOfRange, "scale=: must be > 0 (model units to metres: 0.001 for millimetres)",
+           a.find("scale")->value_column);
+  return s;
+}
+
 ParseResult parse_add_model(Args& a) {
-  a.check_keys({"object", "format", "bytes", "path"});
+  a.check_keys({"object", "format", "bytes", "path", "scale"});
   a.require({"object"});
   const Token* bytes = a.find("bytes");
   const Token* path = a.find("path");
@@ -58,12 +75,14 @@ ParseResult parse_add_model(Args& a) {
              "bytes=: " + std::to_string(n) + " is beyond the limit of " + std::to_string(kMaxPayloadBytes) + " bytes",
              bytes->value_column);
     c.bytes = static_cast<std::size_t>(n);
+    c.scale = read_scale(a);
     return done(a, std::move(c));
   }
   AddModelPath c;
   c.object = std::move(object);
   c.path = a.text("path");
   if (a.has("format")) c.format = read_format(a);
+  c.scale = read_scale(a);
   return done(a, std::move(c));
 }
 
@@ -347,15 +366,17 @@ std::string format(const Command& c) {
   const std::string name(command_name(c));
   const std::string args = std::visit(
       Overloaded{
-          [](const AddObject& x) { return "name=" + x.name; },
+          [](const AddObject& x) { return "name=" + x.name + (x.connection_lifetime ? " lifetime=connection" : ""); },
           [](const RemoveObject& x) { return "name=" + x.name; },
           [](const AddModelInline& x) {
-            return "object=" + x.object + " format=" + std::string(to_string(x.format)) +
-                   " bytes=" + std::to_string(x.bytes);
+            std::string s = "object=" + x.object + " format=" + std::string(to_string(x.format));
+            if (x.scale != 1.0) s += " scale=" + format_number(x.scale);
+            return s + " bytes=" + std::to_string(x.bytes);
           },
           [](const AddModelPath& x) {
             std::string s = "object=" + x.object + " path=" + format_value(x.path);
             if (x.format) s += " format=" + std::string(to_string(*x.format));
+            if (x.scale != 1.0) s += " scale=" + format_number(x.scale);
             return s;
           },
           [](const AddJunction& x) { return "object=" + x.object + " type=junction id=" + x.id + " p=" + vec(x.p); },

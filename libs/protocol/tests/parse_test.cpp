@@ -96,7 +96,7 @@ std::vector<Invalid> invalid_rows() {
       {"AddObject", "AddObject", "missing_argument", "missing argument name="},
       {"AddObject box", "AddObject", "bad_syntax", "unexpected word 'box'"},
       {"AddObject name=box name=cup", "AddObject", "duplicate_argument", "name= given twice (column 20)"},
-      {"AddObject name=box color=red", "AddObject", "unknown_argument", "unknown argument 'color=' for AddObject (takes name=)"},
+      {"AddObject name=box color=red", "AddObject", "unknown_argument", "unknown argument 'color=' for AddObject (takes name= lifetime=)"},
       {"AddObject name=", "AddObject", "bad_syntax", "empty value"},
       {"AddObject name=\"\"", "AddObject", "bad_name", "not a valid name"},
       {"AddObject name=a/b", "AddObject", "bad_name", "'a/b' is not a valid name"},

@@ -12,6 +12,7 @@
 #include "v4r/core/log.hpp"
 #include "v4r/model/cao_reader.hpp"
 #include "v4r/model/mesh_reader.hpp"
+#include "v4r/model/model_scale.hpp"
 
 namespace v4r::server {
 
@@ -27,8 +28,13 @@ Unexpected fail(std::string_view code, Error e) {
 
 Unexpected fail(std::string_view code, std::string msg) { return fail(code, Error{std::move(msg), {}, 0, 0, {}}); }
 
-Expected<std::shared_ptr<const model::Model>> finish(Expected<model::Model> m, const std::string& source) {
+Expected<std::shared_ptr<const model::Model>> finish(Expected<model::Model> m, const std::string& source,
+                                                     double scale = 1.0) {
   if (!m) return fail(protocol::code::kBadModel, m.error());
+  if (scale != 1.0) {  // .cao in other units than metres (meshes are scaled on import)
+    m = model::scaled(*m, scale);
+    if (!m) return fail(protocol::code::kBadModel, m.error());
+  }
   if (m->lines().empty() && m->arcs().empty()) return fail(protocol::code::kBadModel, source + ": model has no edges to track");
   return std::shared_ptr<const model::Model>(std::make_shared<const model::Model>(std::move(*m)));
 }
@@ -97,13 +103,17 @@ class PrivateTempFile {
 }  // namespace
 
 Expected<std::shared_ptr<const model::Model>> load_model_text(const std::string& text, protocol::ModelFormat format,
-                                                              const std::string& source, const PathPolicy& data) {
-  if (format == protocol::ModelFormat::kCao) return finish(model::parse_cao(text, source, cao_options(data)), source);
+                                                              const std::string& source, const PathPolicy& data,
+                                                              double scale) {
+  if (format == protocol::ModelFormat::kCao)
+    return finish(model::parse_cao(text, source, cao_options(data)), source, scale);
   // Meshes go through assimp, which reads files: write the payload to a file that only this
   // process can reach (mkstemp in a fresh mkdtemp folder), removed right after.
   PrivateTempFile tmp(protocol::to_string(format));
   if (!tmp.write_and_close(text)) return fail(protocol::code::kIoError, "cannot write a temporary file for the mesh");
-  auto m = model::load_mesh(tmp.path());
+  model::MeshImportOptions mo;
+  mo.scale = scale;
+  auto m = model::load_mesh(tmp.path(), mo);
   if (!m) {
     Error e = m.error();
     e.file = source;
@@ -114,7 +124,7 @@ Expected<std::shared_ptr<const model::Model>> load_model_text(const std::string&
 
 Expected<std::shared_ptr<const model::Model>> load_model_path(const std::string& path,
                                                               std::optional<protocol::ModelFormat> format,
-                                                              const PathPolicy& data) {
+                                                              const PathPolicy& data, double scale) {
   // The policy comes first: a path outside the data folders is refused before anything else is
   // said about it (not even whether it exists).
   auto resolved = data.resolve_read(path);
@@ -126,8 +136,11 @@ Expected<std::shared_ptr<const model::Model>> load_model_path(const std::string&
   if (!format)
     return fail(protocol::code::kUnsupported,
                 fmt::format("{}: cannot tell the model format from the extension (use format=cao|obj|ply|stl)", path));
-  if (*format == protocol::ModelFormat::kCao) return finish(model::load_cao(resolved->string(), cao_options(data)), path);
-  return finish(model::load_mesh(resolved->string()), path);
+  if (*format == protocol::ModelFormat::kCao)
+    return finish(model::load_cao(resolved->string(), cao_options(data)), path, scale);
+  model::MeshImportOptions mo;
+  mo.scale = scale;
+  return finish(model::load_mesh(resolved->string(), mo), path);
 }
 
 Worker::Worker() {

@@ -174,7 +174,7 @@ void Session::handle_payload(std::string bytes) {
   host_.loader().post([cmd = std::move(cmd), text = std::move(bytes), done = std::move(done), &service, &host]() mutable {
     Expected<std::shared_ptr<const model::Model>> m = make_error("not loaded");
     try {
-      m = load_model_text(text, cmd.format, fmt::format("<AddModel object={}>", cmd.object), host.data_dirs());
+      m = load_model_text(text, cmd.format, fmt::format("<AddModel object={}>", cmd.object), host.data_dirs(), cmd.scale);
     } catch (const std::exception& e) {  // e.g. out of memory in a parser: this request fails, the server goes on
       m = Unexpected{Error{fmt::format("<AddModel object={}>: {}", cmd.object, e.what()), {}, 0, 0, std::string(code::kInternal)}};
     }
@@ -232,7 +232,7 @@ void Session::handle_command(const protocol::Command& cmd) {
             host_.loader().post([p, done = std::move(done), &service, &data]() mutable {
               Expected<std::shared_ptr<const model::Model>> m = make_error("not loaded");
               try {
-                m = load_model_path(p.path, p.format, data);
+                m = load_model_path(p.path, p.format, data, p.scale);
               } catch (const std::exception& e) {
                 m = Unexpected{Error{fmt::format("{}: {}", p.path, e.what()), {}, 0, 0, std::string(code::kInternal)}};
               }
@@ -242,6 +242,25 @@ void Session::handle_command(const protocol::Command& cmd) {
               }
               service.submit(ModelReady{p.object, std::move(*m)}, std::move(done));
             });
+          },
+          [&](const protocol::AddObject& a) {
+            if (!a.connection_lifetime) {
+              host_.service().submit(cmd, deferred_reply());
+              return;
+            }
+            // Owned by this connection once the service said OK (recorded on the network thread).
+            host_.service().submit(cmd, [done = deferred_reply(), w = weak_from_this(), &io = host_.io(),
+                                         name = a.name](std::string line) mutable {
+              if (line.rfind("OK ", 0) == 0)
+                asio::post(io, [w, name]() {
+                  if (auto s = w.lock()) s->owned_.push_back(name);
+                });
+              done(std::move(line));
+            });
+          },
+          [&](const protocol::RemoveObject& r) {
+            std::erase(owned_, r.name);
+            host_.service().submit(cmd, deferred_reply());
           },
           [&](const auto&) { host_.service().submit(cmd, deferred_reply()); },
       },
@@ -383,6 +402,8 @@ void Session::close() {
     host_.release_payload(payload_cmd_->bytes);
     payload_cmd_.reset();
   }
+  for (std::string& name : owned_) host_.service().submit(protocol::Command{protocol::RemoveObject{std::move(name)}}, [](std::string) {});
+  owned_.clear();
   release();
 }
 

@@ -97,6 +97,7 @@ class Session : public std::enable_shared_from_this<Session> {
   std::array<char, 64 * 1024> chunk_{};
   protocol::Framer framer_;         // received bytes -> lines and payloads
   std::optional<protocol::AddModelInline> payload_cmd_;  // waiting for its payload (reserved)
+  std::vector<std::string> owned_;  // objects added with lifetime=connection: removed at close
   bool auth_required_ = false, authed_ = false;
   int auth_failures_ = 0;
   bool reading_ = false, busy_ = false, writing_ = false, closing_ = false, closed_ = false, slow_ = false;

@@ -428,6 +428,15 @@ std::string TrackingService::on(const protocol::SetPose& c) {
   ObjectEntry* e = find(c.object);
   if (!e) return format_err("SetPose", code::kUnknownObject, fmt::format("no object '{}'", c.object));
   if (c.t[2] <= 0.0) return format_err("SetPose", code::kOutOfRange, "the pose puts the object behind the camera (tz <= 0)");
+  // Plausibility (the same limits as `v4r track`): a mistake of units, not a pose to track from.
+  if (const double angle = vec(c.r).norm(); angle > 2.0 * M_PI)
+    return format_err("SetPose", code::kOutOfRange,
+                      fmt::format("r=: the rotation vector is {:.1f} rad long, more than 2 pi: degrees? r is radians",
+                                  angle));
+  if (const double d = vec(c.t).norm(); d > 20.0 || d < 0.01)
+    return format_err("SetPose", code::kOutOfRange,
+                      fmt::format("t=: the object would be {:.4g} m from the camera (plausible: 0.01 to 20 m): {}", d,
+                                  d > 20.0 ? "millimetres? t is metres" : "is t in metres?"));
   e->pose = geometry::SE3::from_rvec(vec(c.t), vec(c.r));
   e->has_pose = true;
   if (e->failed && e->model) {

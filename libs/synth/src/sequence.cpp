@@ -53,11 +53,18 @@ Expected<void> remove_stale_frames(const fs::path& frames, std::size_t count) {
 
 Expected<void> write_sequence(const std::string& dir, const std::string& model_cao, const geometry::PinholeCamera& cam,
                               const std::vector<geometry::SE3>& trajectory, const RenderOptions& opt) {
-  const fs::path root(dir);
-  const fs::path model_path = root / "model.cao";
   // Validate everything before writing anything.
-  auto model = model::parse_cao(model_cao, model_path.string());
+  auto model = model::parse_cao(model_cao, (fs::path(dir) / "model.cao").string());
   if (!model) return model.error();
+  return write_sequence(dir, *model, "model.cao", model_cao, cam, trajectory, opt);
+}
+
+Expected<void> write_sequence(const std::string& dir, const model::Model& model, const std::string& model_file,
+                              const std::string& model_bytes, const geometry::PinholeCamera& cam,
+                              const std::vector<geometry::SE3>& trajectory, const RenderOptions& opt,
+                              const std::function<void(std::size_t, std::size_t)>& progress) {
+  const fs::path root(dir);
+  const fs::path model_path = root / model_file;
   if (trajectory.empty()) return path_error(root, "the trajectory is empty: nothing to render");
   if (cam.width <= 0 || cam.height <= 0 || !(cam.fx > 0) || !(cam.fy > 0))
     return path_error(root, fmt::format("invalid camera ({}x{}, fx={}, fy={})", cam.width, cam.height, cam.fx, cam.fy));
@@ -65,7 +72,7 @@ Expected<void> write_sequence(const std::string& dir, const std::string& model_c
   if (auto r = create_dir(root / "frames"); !r) return r;
   {
     std::ofstream f(model_path, std::ios::binary);
-    f << model_cao;
+    f << model_bytes;
     if (!f) return path_error(model_path, "cannot write the model");
   }
   if (auto r = io::save_camera_opencv((root / "camera.yaml").string(), cam); !r) return r;
@@ -81,14 +88,14 @@ Expected<void> write_sequence(const std::string& dir, const std::string& model_c
   RenderOptions o = opt;
   if (o.cycle_frames <= 0) o.cycle_frames = static_cast<int>(trajectory.size());
   Renderer renderer(cam, o);
-  renderer.set_scene_reference(*model, trajectory);
+  renderer.set_scene_reference(model, trajectory);
   // Motion blur needs the pose before frame 0: extrapolated with constant velocity.
   const geometry::SE3 before_first =
       trajectory.size() > 1 ? trajectory[0] * trajectory[1].inverse() * trajectory[0] : trajectory[0];
   for (std::size_t i = 0; i < trajectory.size(); ++i) {
     const fs::path frame_path = root / "frames" / fmt::format("{:06d}.png", i);
     const geometry::SE3* prev = i > 0 ? &trajectory[i - 1] : &before_first;
-    const cv::Mat img = renderer.render(*model, trajectory[i], static_cast<int>(i), prev);
+    const cv::Mat img = renderer.render(model, trajectory[i], static_cast<int>(i), prev);
     bool ok = false;
     try {
       ok = cv::imwrite(frame_path.string(), img);
@@ -96,6 +103,7 @@ Expected<void> write_sequence(const std::string& dir, const std::string& model_c
       return path_error(frame_path, fmt::format("cannot write the frame: {}", e.what()));
     }
     if (!ok) return path_error(frame_path, "cannot write the frame");
+    if (progress) progress(i + 1, trajectory.size());
   }
   return {};
 }

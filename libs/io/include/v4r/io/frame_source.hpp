@@ -28,6 +28,11 @@ class FrameSource {
   [[nodiscard]] virtual std::string current_name() const = 0;
   /// Number of frames if known, else -1.
   [[nodiscard]] virtual int size_hint() const = 0;
+  /// The frame rate the input declares (a video's own rate), or 0 when it declares none.
+  [[nodiscard]] virtual double nominal_fps() const { return 0.0; }
+  /// Modification time of the last frame's file, seconds since the epoch (sub-second where the
+  /// file system keeps it), or a negative number when the frame has no file of its own (video).
+  [[nodiscard]] virtual double file_time_s() const { return -1.0; }
 };
 
 /// View of an 8-bit single-channel cv::Mat (no copy; the Mat must outlive the view).

@@ -1,6 +1,7 @@
 // v4r - robust model-based object tracking. MIT licence.
 #pragma once
 
+#include <array>
 #include <cstdio>
 #include <memory>
 #include <string>
@@ -10,6 +11,23 @@
 #include "v4r/geometry/se3.hpp"
 
 namespace v4r::io {
+
+/// \brief The six numbers of a pose as written: tx ty tz (metres), rx ry rz (rotation vector, radians).
+using PoseNumbers = std::array<double, 6>;
+
+/// Parses the six numbers of a pose (see parse_pose) without turning them into a pose, so that a
+/// caller can check them as given (a rotation vector longer than 2 pi, a distance in millimetres).
+Expected<PoseNumbers> parse_pose_numbers(const std::string& text, const std::string& source);
+
+/// Loads the six numbers of a pose file (see load_pose_file).
+Expected<PoseNumbers> load_pose_numbers(const std::string& path);
+
+/// The pose T_cam_obj of six numbers.
+geometry::SE3 pose_from_numbers(const PoseNumbers& v);
+
+/// The same rotation with qw >= 0 (for qw = 0 the first non-zero of qx, qy, qz positive): the sign
+/// every CSV of v4r writes, so that consecutive rows never flip.
+Eigen::Quaterniond canonical(const Eigen::Quaterniond& q);
 
 /// \brief Parses "tx ty tz rx ry rz" (T_cam_obj: metres, rotation vector in radians, OpenCV
 /// Rodrigues); commas are accepted as separators. `source` names the input in errors.

@@ -72,9 +72,11 @@ std::string_view to_string(TrackStatus s);  ///< "tracking", "degraded", "lost",
 // ---------------------------------------------------------------------------------------------
 // Commands (client -> server). One struct per command; field names follow the keys on the wire.
 
-/// \brief `AddObject name=ID`: a new, empty object.
+/// \brief `AddObject name=ID [lifetime=server|connection]`: a new, empty object. It belongs to the
+/// server (default) or, with lifetime=connection, is removed when the client that added it disconnects.
 struct AddObject {
   std::string name;
+  bool connection_lifetime = false;
   bool operator==(const AddObject&) const = default;
 };
 /// \brief `RemoveObject name=ID`.
@@ -82,19 +84,21 @@ struct RemoveObject {
   std::string name;
   bool operator==(const RemoveObject&) const = default;
 };
-/// \brief `AddModel object=ID format=F bytes=N`: exactly N bytes of model text follow the line.
+/// \brief `AddModel object=ID format=F [scale=S] bytes=N`: exactly N bytes of model text follow the line.
 struct AddModelInline {
   std::string object;
   ModelFormat format = ModelFormat::kCao;
   std::size_t bytes = 0;  ///< 1..kMaxPayloadBytes
+  double scale = 1.0;     ///< `scale=S`: model units to metres (0.001 for millimetres)
   bool operator==(const AddModelInline&) const = default;
 };
-/// \brief `AddModel object=ID path=FILE [format=F]`: a model file on the server's file system;
+/// \brief `AddModel object=ID path=FILE [format=F] [scale=S]`: a model file on the server's file system;
 /// without format= the server deduces it from the extension.
 struct AddModelPath {
   std::string object;
   std::string path;
   std::optional<ModelFormat> format;
+  double scale = 1.0;  ///< `scale=S`: model units to metres (0.001 for millimetres)
   bool operator==(const AddModelPath&) const = default;
 };
 /// \brief `AddFeature object=ID type=junction id=J p=x,y,z`: a 3-D point, object frame, metres.

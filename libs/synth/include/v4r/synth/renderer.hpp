@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -212,5 +213,13 @@ geometry::PinholeCamera default_camera();
 /// extrapolation backwards). gt.csv holds the pose at the end of each exposure.
 Expected<void> write_sequence(const std::string& dir, const std::string& model_cao, const geometry::PinholeCamera& cam,
                               const std::vector<geometry::SE3>& trajectory, const RenderOptions& opt);
+
+/// The same for a model already loaded (a mesh, in metres): `model_file` (e.g. "model.obj") is
+/// written into `dir` holding `model_bytes` (the file the model was read from). `progress`, when
+/// set, is called after each frame written with (frames written, total).
+Expected<void> write_sequence(const std::string& dir, const model::Model& model, const std::string& model_file,
+                              const std::string& model_bytes, const geometry::PinholeCamera& cam,
+                              const std::vector<geometry::SE3>& trajectory, const RenderOptions& opt,
+                              const std::function<void(std::size_t, std::size_t)>& progress = {});
 
 }  // namespace v4r::synth
