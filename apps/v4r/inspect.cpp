@@ -53,8 +53,7 @@ std::string describe_model(const model::Model& m, bool verbose) {
 int cmd_inspect(const std::string& path, double scale, bool verbose, const model::CaoReadOptions& cao) {
   std::vector<Error> warnings;
   auto m = load_model(path, scale, cao, &warnings);
-  for (const Error& w : warnings) fmt::print(stderr, "v4r inspect-model: warning: {}
-", w.to_string());
+  for (const Error& w : warnings) fmt::print(stderr, "v4r inspect-model: warning: {}\n", w.to_string());
   if (!m) {
     fmt::print(stderr, "v4r inspect-model: error: {}\n", m.error().to_string());
     return 1;
