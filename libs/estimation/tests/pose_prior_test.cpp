@@ -77,10 +77,16 @@ TEST(PosePrior, ThreeParallelEdgesFixTheirDirectionsThePriorTheRest) {
   const Eigen::Vector3d across = x_true.cross(c_true.normalized()).normalized();
   EXPECT_LT(std::abs(across.dot(c_est - c_true)), 1e-3);
   EXPECT_LT(std::acos(std::min(1.0, y_true.dot(y_est))), 0.02);
-  // The covariance is finite and tight across the edges, wide (near the prior's) along them.
+  // The covariance is finite and tight across the edges, wide (near the prior's) along them. The
+  // object origin moves by v + w x t under a left perturbation (v, w): its covariance is
+  // J C J^T with J = [I, -hat(t)].
+  const Eigen::Vector3d t = with.T_cam_obj.translation();
+  Eigen::Matrix<double, 3, 6> J;
+  J << Eigen::Matrix3d::Identity(), -v4r::geometry::hat(t);
+  const Eigen::Matrix3d C = J * with.covariance * J.transpose();
   const Eigen::Vector3d along_cam = x_true;
-  const double var_along = along_cam.dot(with.covariance.topLeftCorner<3, 3>() * along_cam);
-  const double var_across = across.dot(with.covariance.topLeftCorner<3, 3>() * across);
+  const double var_along = along_cam.dot(C * along_cam);
+  const double var_across = across.dot(C * across);
   EXPECT_GT(var_along, 10.0 * var_across);
   EXPECT_LT(std::sqrt(var_along), 0.02);
 }

@@ -80,6 +80,8 @@ ParamRegistry make_registry(CycleParams& p) {
   r.add("cycle.refine_passes", &p.refine_passes, 1, 5, "", "track+solve passes per frame");
   r.add("cycle.ambiguity_angle", &p.ambiguity_angle, 0.0, 1.0, "rad", "edges closer than this in direction count as parallel");
   r.add("cycle.ambiguity_margin", &p.ambiguity_margin_px, -100.0, 100.0, "px", "parallel edges nearer than half_width + this are side by side");
+  r.add("cycle.track_side_by_side", &p.track_side_by_side,
+        "track side-by-side edges in split windows or as one mid-line edge; false: leave both out");
   r.add("cycle.split_min_px", &p.split_min_px, 0.5, 1000.0, "px",
         "side-by-side edges get windows split half way when each keeps this much room; else they are ambiguous");
   r.add("cycle.ambiguity_min_overlap", &p.ambiguity_min_overlap, 0.0, 1.0, "", "overlap (fraction) for ambiguity");

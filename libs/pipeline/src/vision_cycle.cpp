@@ -217,7 +217,9 @@ void VisionCycle::mark_ambiguous(scene::View& view, const scene::Camera& cam) co
   // two edges, a face seen edge-on whose far edge runs along the silhouette).
   const geometry::PinholeCamera& K = cam.intrinsics;
   // (The wide search window reaches further than the tracking window.)
-  const double max_dist = std::max(p_.track.half_width, p_.search_half_width) + p_.ambiguity_margin_px;
+  const double max_dist =
+      (p_.track_side_by_side ? std::max(p_.track.half_width, p_.search_half_width) : p_.track.half_width) +
+      p_.ambiguity_margin_px;
   const double cos_parallel = std::cos(p_.ambiguity_angle);
   for (scene::LineFeature& f : view.lines) {
     f.ambiguous = false;
@@ -260,6 +262,12 @@ void VisionCycle::mark_ambiguous(scene::View& view, const scene::Camera& cam) co
       };
       limit(f.range, s_g);
       limit(g.range, s_f);
+      if (!p_.track_side_by_side) {  // both left out until the view separates them
+        f.range = g.range = features::SearchRange{};
+        f.ambiguous = f.ambiguous || f.visible;
+        g.ambiguous = g.ambiguous || g.visible;
+        continue;
+      }
       if (std::abs(s_g) < 2.0 * p_.split_min_px || std::abs(s_f) < 2.0 * p_.split_min_px) {
         scene::LineFeature& keep = f.visible && !f.ambiguous ? f : g;
         scene::LineFeature& other = &keep == &f ? g : f;
@@ -613,7 +621,8 @@ void VisionCycle::process_view(scene::Object& obj, scene::View& view, const scen
   const int passes = std::max(1, p_.refine_passes);
   // The prediction as a prior (see CycleParams::prior_fallback), in this camera's frame.
   const geometry::SE3 T_view_pred = view.T_cam_obj;
-  const bool can_prior = p_.prior_fallback && obj.covariance_pred.allFinite() && obj.covariance_pred.trace() > 0.0;
+  const bool can_prior =
+      p_.prior_fallback && obj.confirmed && obj.covariance_pred.allFinite() && obj.covariance_pred.trace() > 0.0;
   view.prior_used = false;
   for (int pass = 0; pass < passes; ++pass) {
     const auto ta = now_();
@@ -804,6 +813,7 @@ void VisionCycle::fuse_and_filter(scene::Scene& scene, scene::Object& obj, Objec
     obj.status = scene::TrackStatus::kLost;
   }
   obj.bad_frames = obj.status == scene::TrackStatus::kTracking ? 0 : obj.bad_frames + 1;
+  obj.confirmed = obj.confirmed || obj.status == scene::TrackStatus::kTracking;
   if (p_.use_filter) {
     if (!accept && obj.bad_frames >= p_.recovery.reset_velocity_after) obj.filter.reset_velocity();
     obj.T_ref_obj_filtered = obj.filter.pose();
@@ -849,9 +859,11 @@ const CycleReport& VisionCycle::process(scene::Scene& scene, std::span<const Cam
     try {
       rep.search_level = std::min(obj.bad_frames, p_.recovery.max_search_level);
       const double dt = obj.last_stamp >= 0.0 ? std::max(0.0, stamp_s - obj.last_stamp) : 0.0;
-      obj.T_pred = p_.use_filter && obj.filter.initialised() && obj.status != scene::TrackStatus::kLost
-                       ? obj.filter.predict_pose(dt)
-                       : obj.T_ref_obj;
+      // The filter predicts while the object is tracked, and through degraded frames once its
+      // motion has been measured; a lost object, or a fresh start pose (whose first correction
+      // is no motion), is held.
+      const bool predict = obj.bad_frames == 0 || (obj.confirmed && obj.status != scene::TrackStatus::kLost);
+      obj.T_pred = p_.use_filter && obj.filter.initialised() && predict ? obj.filter.predict_pose(dt) : obj.T_ref_obj;
       obj.covariance_pred.setZero();
       if (p_.use_filter && obj.filter.initialised()) {
         filter::PoseFilter ahead = obj.filter;  // (fixed-size state: no allocation)

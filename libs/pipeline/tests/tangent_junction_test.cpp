@@ -98,6 +98,10 @@ TEST(TangentJunctions, SlotOutlineJunctionsAreObservedAndTrackingStaysAccurate) 
   const auto run = [&](bool junctions) {
     pipeline::CycleParams p;
     p.use_junctions = junctions;
+    // The plate's top and bottom straight edges run side by side; tracked in split windows they
+    // cost rotation accuracy here (0.46 instead of 0.125 degrees, an open item of issue 8), which
+    // this test of the tangent junctions does not measure: they are left out as before.
+    p.track_side_by_side = false;
     pipeline::SingleObjectTracker tracker(model, cam, p);
     tracker.set_pose(truth[0]);
     Outcome o;

@@ -79,6 +79,9 @@ struct CycleParams {
   /// them when each keeps at least this many pixels towards the other; closer ones are ambiguous
   /// and left out. A value above track.half_width leaves every side-by-side pair out.
   double split_min_px = 3.0;
+  /// false: side-by-side edges are neither split nor merged but both left out (within the
+  /// tracking window's half width + ambiguity_margin_px).
+  bool track_side_by_side = true;
   double ambiguity_min_overlap = 0.2;   ///< ... if they overlap by this fraction of the shorter one
   BudgetParams budget;
   RecoveryParams recovery;

@@ -112,6 +112,9 @@ struct Object {
   geometry::Vector6d velocity = geometry::Vector6d::Zero();  ///< (v, w) m/s, rad/s, left tangent of T_ref_obj
   double last_stamp = -1.0;           ///< seconds: time of the last cycle of this object
   int bad_frames = 0;                 ///< consecutive degraded or lost frames
+  /// The pose has been measured from the image alone (a `tracking` frame) since it was last set:
+  /// only then is the prediction good enough to serve as a prior (a start pose may be far off).
+  bool confirmed = false;
 };
 
 /// \brief The scene: cameras and objects, owned by value. Adding an object creates one view per
