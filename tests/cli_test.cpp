@@ -8,21 +8,14 @@
 
 #include <gtest/gtest.h>
 
+#include "cli_harness.hpp"
+
 namespace fs = std::filesystem;
 
 namespace {
 
-struct CliRun {
-  int code = -1;
-  std::string out, err;
-};
-
-std::string slurp(const fs::path& p) {
-  std::ifstream f(p, std::ios::binary);
-  std::stringstream ss;
-  ss << f.rdbuf();
-  return ss.str();
-}
+using v4r_test::CliRun;
+using v4r_test::slurp;
 
 class Cli : public ::testing::Test {
  protected:
@@ -35,18 +28,7 @@ class Cli : public ::testing::Test {
   }
   static void TearDownTestSuite() { fs::remove_all(dir_); }
 
-  static CliRun run(const std::string& args) {
-    static int counter = 0;
-    const fs::path out = dir_ / ("out" + std::to_string(counter) + ".txt");
-    const fs::path err = dir_ / ("err" + std::to_string(counter++) + ".txt");
-    const std::string cmd = std::string(V4R_CLI) + " " + args + " >" + out.string() + " 2>" + err.string();
-    const int status = std::system(cmd.c_str());
-    CliRun r;
-    r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    r.out = slurp(out);
-    r.err = slurp(err);
-    return r;
-  }
+  static CliRun run(const std::string& args) { return v4r_test::run_cli(V4R_CLI, args, dir_); }
   static std::string seq(const std::string& f) { return (dir_ / "seq" / f).string(); }
   static std::string track_args(const std::string& model, const std::string& camera, const std::string& input,
                                 const std::string& pose) {

@@ -17,6 +17,8 @@
 #include <vector>
 
 #include <gtest/gtest.h>
+
+#include "cli_harness.hpp"
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/videoio.hpp>
 
@@ -28,17 +30,8 @@ namespace fs = std::filesystem;
 
 namespace {
 
-struct CliRun {
-  int code = -1;
-  std::string out, err;
-};
-
-std::string slurp(const fs::path& p) {
-  std::ifstream f(p, std::ios::binary);
-  std::stringstream ss;
-  ss << f.rdbuf();
-  return ss.str();
-}
+using v4r_test::CliRun;
+using v4r_test::slurp;
 
 /// A CSV as columns by header name (every value as text).
 struct Csv {
@@ -97,18 +90,7 @@ class FirstContact : public ::testing::Test {
   }
   static void TearDownTestSuite() { fs::remove_all(dir_); }
 
-  static CliRun run(const std::string& args) {
-    static int counter = 0;
-    const fs::path out = dir_ / ("out" + std::to_string(counter) + ".txt");
-    const fs::path err = dir_ / ("err" + std::to_string(counter++) + ".txt");
-    const std::string cmd = std::string(V4R_CLI) + " " + args + " >" + out.string() + " 2>" + err.string();
-    const int status = std::system(cmd.c_str());
-    CliRun r;
-    r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    r.out = slurp(out);
-    r.err = slurp(err);
-    return r;
-  }
+  static CliRun run(const std::string& args) { return v4r_test::run_cli(V4R_CLI, args, dir_); }
   static std::string seq(const std::string& f) { return (dir_ / "seq" / f).string(); }
   static std::string track(const std::string& extra, const std::string& csv = "poses.csv") {
     return "track --model " + seq("model.cao") + " --camera " + seq("camera.yaml") + " --input " + seq("frames") +
