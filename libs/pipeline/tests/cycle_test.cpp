@@ -12,7 +12,9 @@
 #include "v4r/pipeline/tracker.hpp"
 #include "v4r/synth/renderer.hpp"
 
-// Counting global allocator: counts allocations while `g_counting` is set.
+// Counting global allocator: counts allocations while `g_counting` is set. GCC cannot see that
+// the replaced operator new is malloc-based and warns on free().
+#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
 namespace {
 std::atomic<bool> g_counting{false};
 std::atomic<long> g_allocations{0};
