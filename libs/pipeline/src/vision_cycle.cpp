@@ -766,8 +766,7 @@ void VisionCycle::fuse_and_filter(scene::Scene& scene, scene::Object& obj, Objec
     info_xi += info * (T_ref * T0_ref.inverse()).log();
     ++good;
   }
-  const double dt = obj.last_stamp >= 0.0 ? std::max(0.0, stamp_s - obj.last_stamp) : 0.0;
-  obj.last_stamp = stamp_s;
+  obj.last_stamp = stamp_s;  // (the filter's time update for this frame was done in process())
   double ratio = rep.features_visible > 0 ? static_cast<double>(rep.lines_used + rep.junctions_used / 2 +
                                                                  (rep.circle_points_used > 0 ? 1 : 0)) /
                                                 rep.features_visible
@@ -782,7 +781,6 @@ void VisionCycle::fuse_and_filter(scene::Scene& scene, scene::Object& obj, Objec
     T_meas = geometry::SE3::exp(cov_meas * info_xi) * T0_ref;
   }
   if (p_.use_filter) {
-    obj.filter.predict(dt);
     if (accept) {
       // A floor on the measurement covariance keeps the filter from trusting a pose more than the
       // renderer-free reality of a camera allows (0.1 mm, 0.02 degrees).
@@ -862,14 +860,13 @@ const CycleReport& VisionCycle::process(scene::Scene& scene, std::span<const Cam
       // The filter predicts while the object is tracked, and through degraded frames once its
       // motion has been measured; a lost object, or a fresh start pose (whose first correction
       // is no motion), is held.
+      // The filter's time update of this frame, done once here: its pose places the windows and
+      // its covariance weighs the prior; the measurement update follows in fuse_and_filter.
       const bool predict = obj.bad_frames == 0 || (obj.confirmed && obj.status != scene::TrackStatus::kLost);
-      obj.T_pred = p_.use_filter && obj.filter.initialised() && predict ? obj.filter.predict_pose(dt) : obj.T_ref_obj;
       obj.covariance_pred.setZero();
-      if (p_.use_filter && obj.filter.initialised()) {
-        filter::PoseFilter ahead = obj.filter;  // (fixed-size state: no allocation)
-        ahead.predict(dt);
-        obj.covariance_pred = ahead.pose_covariance();
-      }
+      if (p_.use_filter) obj.filter.predict(dt);
+      obj.T_pred = p_.use_filter && obj.filter.initialised() && predict ? obj.filter.pose() : obj.T_ref_obj;
+      if (p_.use_filter && obj.filter.initialised()) obj.covariance_pred = obj.filter.pose_covariance();
       for (scene::View& view : obj.views) {
         if (view.camera >= images.size() || images[view.camera].grey.empty()) continue;
         predict_view(obj, view, scene.cameras()[view.camera]);
