@@ -48,6 +48,11 @@ class GradientHistogram {
   long count_ = 0;
 };
 
+/// Gradient threshold of a window (see LineTrackerParams::min_gradient).
+float threshold(const LineTrackerParams& p, const GradientHistogram& hist) {
+  return std::max(p.min_gradient, p.gradient_noise_factor * hist.median());
+}
+
 bool finite(const Eigen::Vector2d& p) { return std::isfinite(p.x()) && std::isfinite(p.y()); }
 
 /// Bilinear sample without clamping (the arithmetic of ImageView::sample, in single precision:
@@ -599,7 +604,7 @@ LineMeasurement LineTracker::track(const image::ImageView& img, const Segment2& 
     }
   }
   if (valid_rows < kMinInliers) return m;
-  thr_ = std::max(p_.min_gradient, p_.gradient_noise_factor * hist.median());
+  thr_ = threshold(p_, hist);
 
   // Appearance checks of the learned object sides (paper 4.1).
   bool cues = false;
@@ -736,7 +741,7 @@ bool LineTracker::colour_gradient(const LineTrackState& state, float axis[3]) {
       if (j > 0 && j < cols - 1 && inside[j - 1] && inside[j + 1]) hist.add(g[j]);
     }
   }
-  thr_ = std::max(p_.min_gradient, p_.gradient_noise_factor * hist.median());
+  thr_ = threshold(p_, hist);
   for (int c = 0; c < 3; ++c) axis[c] = e[c];
   return true;
 }
