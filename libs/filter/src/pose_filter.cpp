@@ -29,50 +29,6 @@ void symmetrise(Matrix12d& P) { P = 0.5 * (P + P.transpose()).eval(); }
 
 }  // namespace
 
-Matrix6d se3_adjoint(const SE3& T) {
-  const Eigen::Matrix3d R = T.rotation();
-  Matrix6d A = Matrix6d::Zero();
-  A.topLeftCorner<3, 3>() = R;
-  A.topRightCorner<3, 3>() = hat(T.translation()) * R;
-  A.bottomRightCorner<3, 3>() = R;
-  return A;
-}
-
-Matrix6d se3_left_jacobian(const Vector6d& xi) {
-  const Eigen::Vector3d v = xi.head<3>();
-  const Eigen::Vector3d w = xi.tail<3>();
-  const double th2 = w.squaredNorm();
-  const Eigen::Matrix3d W = hat(w), V = hat(v);
-  const Eigen::Matrix3d WW = W * W;
-  // Coefficients of J = I + a W + b W^2 and of the coupling block Q (series below 0.1 rad,
-  // where the closed forms lose digits to cancellation).
-  double a, b, c1, c2, c3;
-  if (th2 < 1e-2) {
-    const double th4 = th2 * th2;
-    a = 0.5 - th2 / 24.0 + th4 / 720.0;
-    b = 1.0 / 6.0 - th2 / 120.0 + th4 / 5040.0;
-    c1 = b;
-    c2 = 1.0 / 24.0 - th2 / 720.0 + th4 / 40320.0;
-    c3 = 1.0 / 120.0 - th2 / 2520.0 + th4 / 120960.0;
-  } else {
-    const double th = std::sqrt(th2), s = std::sin(th), c = std::cos(th);
-    a = (1.0 - c) / th2;
-    b = (th - s) / (th2 * th);
-    c1 = b;
-    c2 = (th2 + 2.0 * c - 2.0) / (2.0 * th2 * th2);
-    c3 = (2.0 * th - 3.0 * s + th * c) / (2.0 * th2 * th2 * th);
-  }
-  const Eigen::Matrix3d J = Eigen::Matrix3d::Identity() + a * W + b * WW;
-  const Eigen::Matrix3d WVW = W * V * W;
-  const Eigen::Matrix3d Q = 0.5 * V + c1 * (W * V + V * W + WVW) + c2 * (WW * V + V * WW - 3.0 * WVW) +
-                            c3 * (WVW * W + W * WVW);
-  Matrix6d Jl = Matrix6d::Zero();
-  Jl.topLeftCorner<3, 3>() = J;
-  Jl.topRightCorner<3, 3>() = Q;
-  Jl.bottomRightCorner<3, 3>() = J;
-  return Jl;
-}
-
 PoseFilter::PoseFilter(const PoseFilterParams& p) : p_(p) {}
 
 void PoseFilter::reset(const SE3& T, const Matrix6d& pose_cov) {
@@ -85,6 +41,7 @@ void PoseFilter::reset(const SE3& T, const Matrix6d& pose_cov) {
   P_.topLeftCorner<6, 6>() = 0.5 * (pose_cov + pose_cov.transpose());
   initialised_ = true;
   reset_velocity();
+  last_q_.setZero();
 }
 
 void PoseFilter::reset_velocity() {
@@ -98,6 +55,7 @@ void PoseFilter::reset_velocity() {
     P_(6 + i, 6 + i) = sv;
     P_(9 + i, 9 + i) = sw;
   }
+  noise_scale_ = 1.0;
 }
 
 SE3 PoseFilter::predict_pose(double dt) const {
@@ -108,8 +66,8 @@ SE3 PoseFilter::predict_pose(double dt) const {
 Matrix12d PoseFilter::transition_jacobian(const Vector6d& vel, double dt) {
   const Vector6d step = vel * dt;
   Matrix12d F = Matrix12d::Identity();
-  F.topLeftCorner<6, 6>() = se3_adjoint(SE3::exp(step));
-  F.topRightCorner<6, 6>() = dt * se3_left_jacobian(step);
+  F.topLeftCorner<6, 6>() = geometry::adjoint(SE3::exp(step));
+  F.topRightCorner<6, 6>() = dt * geometry::left_jacobian(step);
   return F;
 }
 
@@ -135,11 +93,14 @@ Matrix12d PoseFilter::process_noise(double dt) const {
 void PoseFilter::predict(double dt) {
   if (!initialised_ || !(dt > 0.0) || !std::isfinite(dt)) return;
   const Matrix12d F = transition_jacobian(vel_, dt);
-  const Matrix12d P = F * P_ * F.transpose() + process_noise(dt);
+  const Matrix12d Q = process_noise(dt);
+  const double scale = p_.adapt_noise ? noise_scale_ : 1.0;
+  const Matrix12d P = F * P_ * F.transpose() + scale * Q;
   const SE3 T = SE3::exp(vel_ * dt) * T_;
   if (!P.allFinite() || !finite(T)) return;
   T_ = T;
   P_ = P;
+  last_q_ = (1.0 - scale) * Q;  // what a full-scale time update would have added on top
   symmetrise(P_);
 }
 
@@ -161,12 +122,28 @@ double PoseFilter::update(const SE3& T_meas, const Matrix6d& cov, double gate_ch
   }
   const Vector6d y = (T_meas * T_.inverse()).log();
   const Matrix6d R = 0.5 * (cov + cov.transpose());
-  const Matrix6d S = P_.topLeftCorner<6, 6>() + R;
-  const Eigen::LLT<Matrix6d> llt(S);
+  Eigen::LLT<Matrix6d> llt(P_.topLeftCorner<6, 6>() + R);
   if (llt.info() != Eigen::Success || !y.allFinite()) return kInvalidChi2;
-  const double chi2 = y.dot(llt.solve(y));
+  double chi2 = y.dot(llt.solve(y));
   if (!std::isfinite(chi2) || chi2 < 0.0) return kInvalidChi2;
   if (!(chi2 <= gate_chi2)) return chi2;
+  // Adaptive process noise: a measurement the reduced noise cannot explain means the object
+  // moves: the time update is redone at full noise (no lag), and the noise stays up.
+  bool boosted = false;
+  if (p_.adapt_noise && chi2 > p_.motion_chi2 && noise_scale_ < 1.0) {
+    const Matrix12d P_full = P_ + last_q_;
+    const Eigen::LLT<Matrix6d> llt_full(P_full.topLeftCorner<6, 6>() + R);
+    if (llt_full.info() == Eigen::Success) {
+      P_ = P_full;
+      llt = llt_full;
+      chi2 = y.dot(llt.solve(y));
+      noise_scale_ = 1.0;
+      last_q_.setZero();
+      boosted = true;
+    }
+  }
+  if (p_.adapt_noise && !boosted && chi2 <= p_.motion_chi2)
+    noise_scale_ = std::max(std::clamp(p_.min_noise_scale, 0.0, 1.0), noise_scale_ * std::clamp(p_.noise_decay, 0.0, 1.0));
 
   // K = P H^T S^-1 with H = [I 0]: P H^T = P.leftCols<6>().
   const Eigen::Matrix<double, 12, 6> PHt = P_.leftCols<6>();
@@ -177,7 +154,7 @@ double PoseFilter::update(const SE3& T_meas, const Matrix6d& cov, double gate_ch
   Matrix12d P = IKH * P_ * IKH.transpose() + K * R * K.transpose();
   // Carry the covariance over to the corrected pose (see the file comment).
   Matrix12d G = Matrix12d::Identity();
-  G.topLeftCorner<6, 6>() = se3_left_jacobian(dx.head<6>());
+  G.topLeftCorner<6, 6>() = geometry::left_jacobian(dx.head<6>());
   P = G * P * G.transpose();
   const SE3 T = SE3::exp(dx.head<6>()) * T_;
   if (!P.allFinite() || !dx.allFinite() || !finite(T)) return kInvalidChi2;

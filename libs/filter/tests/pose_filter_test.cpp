@@ -142,10 +142,10 @@ TEST(PoseFilter, SE3LeftJacobianAndAdjointMatchDefinitions) {
       // E exp(d) E^-1 = exp(Ad d).
       An.col(c) = (log_ref(E * SE3::exp(d) * E.inverse()) - log_ref(E * SE3::exp(-d) * E.inverse())) / (2 * h);
     }
-    EXPECT_LT((se3_left_jacobian(xi) - Jn).norm(), 1e-7) << "k " << k << " |w| " << xi.tail<3>().norm();
-    EXPECT_LT((se3_adjoint(E) - An).norm(), 1e-7) << "k " << k;
+    EXPECT_LT((v4r::geometry::left_jacobian(xi) - Jn).norm(), 1e-7) << "k " << k << " |w| " << xi.tail<3>().norm();
+    EXPECT_LT((v4r::geometry::adjoint(E) - An).norm(), 1e-7) << "k " << k;
   }
-  EXPECT_LT((se3_left_jacobian(Vector6d::Zero()) - Matrix6d::Identity()).norm(), 1e-15);
+  EXPECT_LT((v4r::geometry::left_jacobian(Vector6d::Zero()) - Matrix6d::Identity()).norm(), 1e-15);
 }
 
 TEST(PoseFilter, TransitionJacobianMatchesNumericPropagation) {
@@ -495,4 +495,46 @@ TEST(PoseFilter, NeverAllocates) {
   }
   EXPECT_EQ(g_allocations.load() - before, 0);
   EXPECT_TRUE(std::isfinite(sum));
+}
+
+// Adaptive process noise: at rest the measurements' noise is averaged away; a motion restores
+// the full noise in the very update that shows it.
+TEST(PoseFilter, AdaptiveNoiseHoldsARestingObjectStillAndFollowsAJumpAtOnce) {
+  PoseFilterParams p;
+  p.adapt_noise = true;
+  p.motion_chi2 = 22.5;  // 99.9 % of consistent measurements stay below
+  PoseFilter f(p), plain(PoseFilterParams{});
+  const SE3 truth(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.0, 0.0, 0.5));
+  Matrix6d R = Matrix6d::Zero();
+  R.diagonal() << 1e-8, 1e-8, 4e-8, 1e-6, 1e-6, 1e-6;  // 0.1 / 0.2 mm, 0.06 deg
+  f.reset(truth, R);
+  plain.reset(truth, R);
+  std::mt19937 rng(11);
+  std::normal_distribution<double> g(0.0, 1.0);
+  double se = 0.0, se_plain = 0.0;
+  int n = 0;
+  for (int k = 0; k < 120; ++k) {
+    Vector6d e;
+    for (int i = 0; i < 6; ++i) e[i] = g(rng) * std::sqrt(R(i, i));
+    const SE3 meas = SE3::exp(e) * truth;
+    f.predict(1.0 / 30.0);
+    plain.predict(1.0 / 30.0);
+    f.update(meas, R);
+    plain.update(meas, R);
+    if (k >= 20) {
+      se += (f.pose().translation() - truth.translation()).squaredNorm();
+      se_plain += (plain.pose().translation() - truth.translation()).squaredNorm();
+      ++n;
+    }
+  }
+  EXPECT_LE(f.noise_scale(), 1e-4);
+  EXPECT_DOUBLE_EQ(plain.noise_scale(), 1.0);
+  // The plain filter follows the noise, the adaptive one averages it.
+  EXPECT_LT(std::sqrt(se / n), 0.5 * std::sqrt(se_plain / n));
+  // A jump of 5 mm: taken at once (most of it), and the noise is back at full scale.
+  const SE3 moved(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.005, 0.0, 0.5));
+  f.predict(1.0 / 30.0);
+  f.update(moved, R);
+  EXPECT_DOUBLE_EQ(f.noise_scale(), 1.0);
+  EXPECT_GT(f.pose().translation().x(), 0.004);
 }

@@ -72,7 +72,7 @@ ParamRegistry make_registry(CycleParams& p) {
   r.add("visibility.min_length", &v.min_length_px, 1.0, 1000.0, "px", "shortest visible edge part tracked");
   // Cycle.
   r.add("cycle.min_lines", &p.min_lines, 3, 1000, "", "fewer found lines: the pose is not updated");
-  r.add("cycle.degraded_ratio", &p.degraded_ratio, 0.0, 1.0, "", "used/visible below this: status degraded");
+  r.add("cycle.degraded_ratio", &p.degraded_ratio, 0.0, 1.0, "", "used/visible below this: the measurement counts as weak (wider search, gated)");
   r.add("cycle.prior_fallback", &p.prior_fallback,
         "features that fix fewer than 6 dof: solve with the prediction as prior (degraded, not lost)");
   r.add("cycle.prior_max_rms", &p.prior_max_rms_px, 0.1, 1000.0, "px",
@@ -93,13 +93,28 @@ ParamRegistry make_registry(CycleParams& p) {
   r.add("budget.reserve_fraction", &p.budget.reserve_fraction, 0.0, 0.9, "", "part of the budget kept for pose and filter");
   // Recovery.
   r.add("recovery.max_search_level", &p.recovery.max_search_level, 0, 8, "", "search windows grow to (1 + level) x search.half_width");
-  r.add("recovery.lost_quality", &p.recovery.lost_quality, 0.0, 1.0, "", "quality below this: lost");
+  r.add("recovery.lost_quality", &p.recovery.lost_quality, 0.0, 1.0, "", "feature quality below this: the measurement is not used");
   r.add("recovery.reset_velocity_after", &p.recovery.reset_velocity_after, 1, 1000, "frames", "bad frames before the velocity is dropped");
   r.add("recovery.gate_chi2", &p.recovery.gate_chi2, 1.0, 1e9, "", "degraded measurements further from the prediction are rejected");
+  // Status from image evidence.
+  auto& st = p.status;
+  r.add("status.tracking_evidence", &st.tracking_evidence, 0.0, 1.0, "",
+        "share of the projected model's edge samples confirmed by the image for status tracking");
+  r.add("status.lost_evidence", &st.lost_evidence, 0.0, 1.0, "", "below this share: status lost");
+  r.add("status.sample_step", &st.evidence.step_px, 1.0, 100.0, "px", "spacing of the evidence samples along projected edges");
+  r.add("status.max_samples_per_edge", &st.evidence.max_samples_per_edge, 1, 1000, "", "evidence samples per edge at most");
+  r.add("status.search", &st.evidence.search_px, 0, 8, "px", "an evidence sample looks for its edge this far across");
+  r.add("status.max_angle", &st.evidence.max_angle_rad, 0.01, 1.5, "rad", "largest gradient angle to the predicted edge normal");
+  r.add("status.min_gradient", &st.evidence.min_gradient, 0.0, 255.0, "grey/px", "floor of the evidence gradient threshold");
   // Temporal filter.
   r.add("filter.enabled", &p.use_filter, "predict and smooth with the constant-velocity EKF");
   r.add("filter.accel_noise", &p.filter.accel_noise, 0.0, 1000.0, "m/s^2", "white-noise acceleration (translation)");
   r.add("filter.angular_accel_noise", &p.filter.angular_accel_noise, 0.0, 1000.0, "rad/s^2", "white-noise angular acceleration");
+  r.add("filter.smooth_output", &p.smooth_output,
+        "report the pose of a smoother whose process noise adapts to the motion (an object at rest is reported at rest)");
+  r.add("filter.min_noise_scale", &p.filter.min_noise_scale, 0.0, 1.0, "", "smoother: smallest scale of its process noise");
+  r.add("filter.noise_decay", &p.filter.noise_decay, 0.0, 1.0, "", "smoother: noise scale factor per update that shows no motion");
+  r.add("filter.motion_chi2", &p.filter.motion_chi2, 0.0, 1e6, "", "smoother: innovation chi^2 (6 dof) that shows motion: full noise at once");
   r.add("filter.frame_interval", &p.frame_interval_s, 1e-4, 10.0, "s", "time between frames without time stamps");
   // Parameters that existed without a name (issue 13: `v4r config` prints every parameter).
   // Not here: ellipse max_samples (from ellipse.samples) and solver focal_px (from the camera).

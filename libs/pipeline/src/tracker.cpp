@@ -1,6 +1,8 @@
 // v4r - robust model-based object tracking. MIT licence.
 #include "v4r/pipeline/tracker.hpp"
 
+#include "v4r/geometry/se3_jacobians.hpp"
+
 namespace v4r::pipeline {
 
 SingleObjectTracker::SingleObjectTracker(std::shared_ptr<const model::Model> model, const geometry::PinholeCamera& cam,
@@ -23,7 +25,7 @@ FrameResult SingleObjectTracker::track(const image::ImageView& grey, const image
     r.T_cam_obj = o.T_ref_obj;
     r.T_cam_obj_filtered = o.T_ref_obj_filtered;
     r.velocity = o.velocity;
-    r.covariance = o.covariance;
+    r.covariance = geometry::translation_rotation_covariance(o.T_ref_obj, o.covariance);
     r.report = rep.objects[0];
   }
   r.cycle_ms = rep.cycle_ms;

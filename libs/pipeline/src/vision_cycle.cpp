@@ -27,16 +27,6 @@ features::EllipseTrackerParams ellipse_params(const CycleParams& p, int half_len
   return e;
 }
 
-/// Adjoint of T for tangents ordered (v, w) with left updates: exp(Ad(T) x) * T == T * exp(x).
-geometry::Matrix6d adjoint(const geometry::SE3& T) {
-  geometry::Matrix6d A = geometry::Matrix6d::Zero();
-  const Eigen::Matrix3d R = T.rotation();
-  A.topLeftCorner<3, 3>() = R;
-  A.topRightCorner<3, 3>() = geometry::hat(T.translation()) * R;
-  A.bottomRightCorner<3, 3>() = R;
-  return A;
-}
-
 /// The measured line in normalised undistorted coordinates. Under lens distortion a straight edge
 /// is curved in the image, so the edge pixels are undistorted one by one and a line is fitted to
 /// them (total least squares); its ends are the undistorted window ends projected onto it.
@@ -79,6 +69,7 @@ VisionCycle::VisionCycle(const CycleParams& params, Clock::time_point (*now)())
       ellipse_searcher_(ellipse_params(params, std::max(params.ellipse.half_length, params.search_half_width),
                                        params.ellipse.max_samples)),
       reduced_ellipse_tracker_(ellipse_params(params, params.ellipse.half_length, std::max(8, params.ellipse.max_samples / 2))),
+      evidence_(params.status.evidence),
       solver_(params.solver),
       visibility_(params.visibility) {
   const int levels = std::max(0, params.recovery.max_search_level) + 1;
@@ -650,7 +641,7 @@ void VisionCycle::process_view(scene::Object& obj, scene::View& view, const scen
       bool with_prior = false;
       if (can_prior && !(result.ok() && result.inliers >= p_.min_lines && result.rms_px <= p_.prior_max_rms_px)) {
         // Partial observability: the image fixes some directions, the prediction the others.
-        const geometry::Matrix6d Ad = adjoint(cam.T_ref_cam.inverse());
+        const geometry::Matrix6d Ad = geometry::adjoint(cam.T_ref_cam.inverse());
         geometry::Matrix6d cov = Ad * obj.covariance_pred * Ad.transpose();
         cov.diagonal().array() += 1e-12;
         prior_.T_cam_obj = T_view_pred;
@@ -742,6 +733,55 @@ void VisionCycle::process_view(scene::Object& obj, scene::View& view, const scen
     rep.rms_px = result.rms_px;
   }
   rep.iterations += result.iterations;
+  measure_evidence(view, cam, img);
+}
+
+void VisionCycle::measure_evidence(scene::View& view, const scene::Camera& cam,
+                                   const CameraImage& img) {
+  // Gradient thresholds: a tracked edge's own (what its window needed against noise and
+  // texture), else the lowest of this view's tracked edges, else the evidence test's floor.
+  float view_thr = 0.0f;
+  for (const scene::LineFeature& f : view.lines)
+    if (f.visible && f.measurement.found && f.measurement.threshold > 0.0f)
+      view_thr = view_thr > 0.0f ? std::min(view_thr, f.measurement.threshold) : f.measurement.threshold;
+  const geometry::PinholeCamera& K = cam.intrinsics;
+  const geometry::SE3& T = view.T_cam_obj;
+  evidence_.reset();
+  for (const scene::LineFeature& f : view.lines) {
+    // Every visible edge, tracked or not (ambiguous, left out by the budget); a merged pair's
+    // mid-line is no edge of the image.
+    if (!f.visible || f.merged) continue;
+    const Eigen::Vector3d A = T * f.X1, B = T * f.X2;
+    if (A.z() <= 1e-3 || B.z() <= 1e-3) continue;
+    const float thr = f.measurement.found && f.measurement.threshold > 0.0f ? f.measurement.threshold : view_thr;
+    const Eigen::Vector2d a = K.project(A), b = K.project(B);
+    if (!K.has_distortion()) {
+      evidence_.add_segment(img.grey, a, b, thr);
+      continue;
+    }
+    const int k = evidence_.samples_for_length((b - a).norm());
+    for (int i = 0; i < k; ++i) {  // a straight edge bends under distortion: project each sample
+      const double s = (i + 0.5) / k, e = 0.25 / k;
+      const Eigen::Vector2d p = K.project(A + s * (B - A));
+      const Eigen::Vector2d d = K.project(A + (s + e) * (B - A)) - K.project(A + (s - e) * (B - A));
+      if (d.norm() < 1e-9) continue;
+      evidence_.add_sample(img.grey, p, Eigen::Vector2d(-d.y(), d.x()).normalized(), thr);
+    }
+  }
+  for (const scene::ArcFeature& a : view.arcs) {
+    if (!a.visible || a.samples < 2) continue;
+    for (int k = 0; k < a.samples; ++k) {
+      const Eigen::Vector3d P = T * a.X[static_cast<std::size_t>(k)];
+      const Eigen::Vector3d P0 = T * a.X[static_cast<std::size_t>(std::max(0, k - 1))];
+      const Eigen::Vector3d P1 = T * a.X[static_cast<std::size_t>(std::min(a.samples - 1, k + 1))];
+      if (P.z() <= 1e-3 || P0.z() <= 1e-3 || P1.z() <= 1e-3) continue;
+      const Eigen::Vector2d d = K.project(P1) - K.project(P0);
+      if (d.norm() < 1e-9) continue;
+      evidence_.add_sample(img.grey, K.project(P), Eigen::Vector2d(-d.y(), d.x()).normalized(), view_thr);
+    }
+  }
+  view.evidence_samples = evidence_.samples();
+  view.evidence_matched = evidence_.matched();
 }
 
 void VisionCycle::fuse_and_filter(scene::Scene& scene, scene::Object& obj, ObjectReport& rep, double stamp_s) {
@@ -758,7 +798,7 @@ void VisionCycle::fuse_and_filter(scene::Scene& scene, scene::Object& obj, Objec
     const geometry::SE3 T_ref = cam.T_ref_cam * view.T_cam_obj;
     // Information in the reference frame: Ad(T_cam_ref)^T I Ad(T_cam_ref) (covariances map with
     // Ad(T_ref_cam)).
-    const geometry::Matrix6d Ad_inv = adjoint(cam.T_ref_cam.inverse());
+    const geometry::Matrix6d Ad_inv = geometry::adjoint(cam.T_ref_cam.inverse());
     if (good == 0) T0_ref = T_ref;
     const geometry::Matrix6d info = Ad_inv.transpose() * view.information * Ad_inv;
     prior_used = prior_used || view.prior_used;
@@ -767,13 +807,26 @@ void VisionCycle::fuse_and_filter(scene::Scene& scene, scene::Object& obj, Objec
     ++good;
   }
   obj.last_stamp = stamp_s;  // (the filter's time update for this frame was done in process())
+  // Status from the image: the share of the projected model's edge samples that the image
+  // confirms, at the views' measured poses.
+  int ev_samples = 0, ev_matched = 0;
+  for (const scene::View& view : obj.views) {
+    ev_samples += view.evidence_samples;
+    ev_matched += view.evidence_matched;
+  }
+  const double evidence = ev_samples > 0 ? static_cast<double>(ev_matched) / ev_samples : 0.0;
+  rep.evidence = evidence;
+  rep.evidence_samples = ev_samples;
+  obj.evidence = evidence;
+  // Whether the measurement is used follows the features: the share of visible features used,
+  // lowered by large residuals.
   double ratio = rep.features_visible > 0 ? static_cast<double>(rep.lines_used + rep.junctions_used / 2 +
                                                                  (rep.circle_points_used > 0 ? 1 : 0)) /
                                                 rep.features_visible
                                           : 0.0;
   ratio = std::clamp(ratio, 0.0, 1.0);
-  const double quality = good > 0 ? ratio / (1.0 + (rep.rms_px / 1.5) * (rep.rms_px / 1.5)) : 0.0;
-  bool accept = good > 0 && quality >= p_.recovery.lost_quality;
+  const double residual_factor = 1.0 / (1.0 + (rep.rms_px / 1.5) * (rep.rms_px / 1.5));
+  bool accept = good > 0 && ratio * residual_factor >= p_.recovery.lost_quality;
   geometry::SE3 T_meas;
   geometry::Matrix6d cov_meas = geometry::Matrix6d::Zero();
   if (accept) {
@@ -792,28 +845,47 @@ void VisionCycle::fuse_and_filter(scene::Scene& scene, scene::Object& obj, Objec
         rep.measurement_rejected = true;
       } else {
         obj.filter.update(T_meas, cov_meas + floor);
+        // The reported pose: the smoother's. A measurement it cannot explain even at full noise
+        // (a recovery, a jump) restarts it there.
+        if (p_.smooth_output && obj.smoother.update(T_meas, cov_meas + floor) > p_.recovery.gate_chi2)
+          obj.smoother.reset(T_meas, cov_meas + floor);
       }
     }
   }
   if (accept) {
-    obj.T_ref_obj = T_meas;
+    obj.T_ref_obj = p_.use_filter && p_.smooth_output && obj.smoother.initialised() ? obj.smoother.pose() : T_meas;
     // Directions held by the prediction carry the filter's covariance, not the (huge) one of
     // the observations alone.
     obj.covariance = prior_used && p_.use_filter ? obj.filter.pose_covariance() : cov_meas;
-    obj.quality = quality;
-    obj.status = ratio >= p_.degraded_ratio && !prior_used ? scene::TrackStatus::kTracking : scene::TrackStatus::kDegraded;
+    obj.measured = ratio >= p_.degraded_ratio && !prior_used ? scene::TrackStatus::kTracking : scene::TrackStatus::kDegraded;
     rep.prior_used = prior_used;
   } else {
     // No usable measurement: hold the prediction (the filter's, which does not run away: its
     // velocity is dropped after a few bad frames) and search wider next time.
     obj.T_ref_obj = obj.T_pred;
-    obj.quality = 0.0;
-    obj.status = scene::TrackStatus::kLost;
+    obj.measured = scene::TrackStatus::kLost;
   }
-  obj.bad_frames = obj.status == scene::TrackStatus::kTracking ? 0 : obj.bad_frames + 1;
-  obj.confirmed = obj.confirmed || obj.status == scene::TrackStatus::kTracking;
+  // The reported status: what the image shows at the pose.
+  if (!accept || evidence < p_.status.lost_evidence) {
+    obj.status = scene::TrackStatus::kLost;
+  } else if (evidence >= p_.status.tracking_evidence && obj.measured == scene::TrackStatus::kTracking) {
+    obj.status = scene::TrackStatus::kTracking;
+  } else {
+    obj.status = scene::TrackStatus::kDegraded;
+  }
+  obj.quality = accept ? evidence * residual_factor : 0.0;
+  // A pose the image does not support carries the prediction's covariance, which grows with
+  // time while nothing is measured; never the last measurement's.
+  if (obj.status == scene::TrackStatus::kLost && p_.use_filter && obj.filter.initialised() &&
+      obj.covariance_pred.trace() > 0.0)
+    obj.covariance = accept ? obj.covariance_pred : obj.filter.pose_covariance();
+  obj.bad_frames = obj.measured == scene::TrackStatus::kTracking ? 0 : obj.bad_frames + 1;
+  obj.confirmed = obj.confirmed || obj.measured == scene::TrackStatus::kTracking;
   if (p_.use_filter) {
-    if (!accept && obj.bad_frames >= p_.recovery.reset_velocity_after) obj.filter.reset_velocity();
+    if (!accept && obj.bad_frames >= p_.recovery.reset_velocity_after) {
+      obj.filter.reset_velocity();
+      obj.smoother.reset_velocity();
+    }
     obj.T_ref_obj_filtered = obj.filter.pose();
     obj.velocity = obj.filter.velocity();
   } else {
@@ -862,9 +934,17 @@ const CycleReport& VisionCycle::process(scene::Scene& scene, std::span<const Cam
       // is no motion), is held.
       // The filter's time update of this frame, done once here: its pose places the windows and
       // its covariance weighs the prior; the measurement update follows in fuse_and_filter.
-      const bool predict = obj.bad_frames == 0 || (obj.confirmed && obj.status != scene::TrackStatus::kLost);
+      const bool predict = obj.bad_frames == 0 || (obj.confirmed && obj.measured != scene::TrackStatus::kLost);
       obj.covariance_pred.setZero();
-      if (p_.use_filter) obj.filter.predict(dt);
+      filter::PoseFilterParams fp = p_.filter;
+      fp.adapt_noise = false;
+      obj.filter.set_params(fp);
+      fp.adapt_noise = true;
+      obj.smoother.set_params(fp);
+      if (p_.use_filter) {
+        obj.filter.predict(dt);
+        if (p_.smooth_output) obj.smoother.predict(dt);
+      }
       obj.T_pred = p_.use_filter && obj.filter.initialised() && predict ? obj.filter.pose() : obj.T_ref_obj;
       if (p_.use_filter && obj.filter.initialised()) obj.covariance_pred = obj.filter.pose_covariance();
       for (scene::View& view : obj.views) {

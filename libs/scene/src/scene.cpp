@@ -50,12 +50,15 @@ void Scene::set_pose(std::size_t object, const geometry::SE3& T_ref_obj) {
   o.T_ref_obj_filtered = T_ref_obj;
   o.velocity.setZero();
   o.status = TrackStatus::kTracking;
+  o.measured = TrackStatus::kTracking;
   o.bad_frames = 0;
   o.confirmed = false;
   o.last_stamp = -1.0;
   geometry::Matrix6d cov = geometry::Matrix6d::Zero();
   cov.diagonal() << 1e-4, 1e-4, 1e-4, 1e-3, 1e-3, 1e-3;  // 1 cm, 1.8 degrees: a hint, not a measurement
   o.filter.reset(T_ref_obj, cov);
+  o.smoother.reset(T_ref_obj, cov);
+  o.covariance = cov;
   for (View& v : o.views) {
     v.T_cam_obj = cameras_[v.camera].T_ref_cam.inverse() * T_ref_obj;
     for (LineFeature& f : v.lines) {

@@ -1,6 +1,8 @@
 // v4r - robust model-based object tracking. MIT licence.
 #include "v4r/server/tracking_service.hpp"
 
+#include "v4r/geometry/se3_jacobians.hpp"
+
 #include <algorithm>
 #include <cmath>
 
@@ -57,11 +59,15 @@ void replace_model(scene::Scene& scene, std::size_t i, std::shared_ptr<const mod
   o.status = old.status;
   o.quality = old.quality;
   o.filter = old.filter;
+  o.smoother = old.smoother;
   o.T_ref_obj_filtered = old.T_ref_obj_filtered;
   o.T_pred = old.T_pred;
   o.velocity = old.velocity;
   o.last_stamp = old.last_stamp;
   o.bad_frames = old.bad_frames;
+  o.measured = old.measured;
+  o.confirmed = old.confirmed;
+  o.evidence = old.evidence;
   for (scene::View& v : o.views) v.T_cam_obj = scene.cameras()[v.camera].T_ref_cam.inverse() * o.T_ref_obj;
 }
 
@@ -595,7 +601,7 @@ void TrackingService::process_frame(Clock::time_point released) {
     const Eigen::Quaterniond& q = T_cam_obj.quaternion();
     p.t = {t.x(), t.y(), t.z()};
     p.q = {q.w(), q.x(), q.y(), q.z()};
-    const geometry::Matrix6d cov = published_covariance(find(o.name), o, rep.stamp_s);
+    const geometry::Matrix6d cov = published_covariance(o);
     for (int rr = 0; rr < 6; ++rr)
       for (int cc = 0; cc < 6; ++cc) p.cov[static_cast<std::size_t>(rr * 6 + cc)] = cov(rr, cc);
     p.quality = std::isfinite(o.quality) ? std::clamp(o.quality, 0.0, 1.0) : 0.0;
@@ -620,7 +626,10 @@ void TrackingService::process_frame(Clock::time_point released) {
     p.q = {q.w(), q.x(), q.y(), q.z()};
     filter::PoseFilter f = e.hold;
     f.predict(std::max(0.0, rep.stamp_s - e.hold_stamp));
-    const geometry::Matrix6d cov = f.pose_covariance();
+    const geometry::SE3 T_cam_ref = scene_.cameras()[0].T_ref_cam.inverse();
+    const geometry::Matrix6d Ad = geometry::adjoint(T_cam_ref);
+    const geometry::Matrix6d cov =
+        geometry::translation_rotation_covariance(e.held_pose, Ad * f.pose_covariance() * Ad.transpose());
     for (int rr = 0; rr < 6; ++rr)
       for (int cc = 0; cc < 6; ++cc) p.cov[static_cast<std::size_t>(rr * 6 + cc)] = cov(rr, cc);
     p.quality = 0.0;
@@ -686,23 +695,12 @@ void TrackingService::count_objects() {
   failed_ = static_cast<int>(std::count_if(objects_.begin(), objects_.end(), [](const ObjectEntry& e) { return e.failed; }));
 }
 
-geometry::Matrix6d TrackingService::published_covariance(ObjectEntry* e, const scene::Object& o, double stamp) {
-  if (o.status != scene::TrackStatus::kLost) {
-    if (e) e->hold_stamp = -1.0;
-    return o.covariance;
-  }
-  // Lost: the pose is held (a prediction), so is its uncertainty, which grows with time; the
-  // covariance of the last good measurement would claim a precision the pose no longer has.
-  if (params_.use_filter && o.filter.initialised()) return o.filter.pose_covariance();
-  if (!e) return o.covariance;
-  if (e->hold_stamp < 0.0) {  // the filter does not run: predict from the start of the hold
-    e->hold = filter::PoseFilter(o.filter.params());
-    e->hold.reset(o.T_ref_obj, o.covariance);
-    e->hold_stamp = stamp;
-  }
-  filter::PoseFilter f = e->hold;
-  f.predict(std::max(0.0, stamp - e->hold_stamp));
-  return f.pose_covariance();
+geometry::Matrix6d TrackingService::published_covariance(const scene::Object& o) const {
+  // The cycle keeps o.covariance honest (the prediction's, growing, while lost). Published: of
+  // (translation, rotation) of T_cam_obj in the camera frame, as poses.csv and ROS have it.
+  const geometry::SE3 T_cam_ref = scene_.cameras()[0].T_ref_cam.inverse();
+  const geometry::Matrix6d Ad = geometry::adjoint(T_cam_ref);
+  return geometry::translation_rotation_covariance(T_cam_ref * o.T_ref_obj, Ad * o.covariance * Ad.transpose());
 }
 
 }  // namespace v4r::server

@@ -6,20 +6,12 @@
 #include <Eigen/Core>
 
 #include "v4r/geometry/se3.hpp"
+#include "v4r/geometry/se3_jacobians.hpp"
 
 namespace v4r::filter {
 
 using Matrix12d = Eigen::Matrix<double, 12, 12>;
 using Vector12d = Eigen::Matrix<double, 12, 1>;
-
-/// \brief SE(3) adjoint in (v, w) order: T * exp(d) * T^-1 == exp(Ad(T) * d);
-/// Ad(T) = [R, hat(t) R; 0, R].
-geometry::Matrix6d se3_adjoint(const geometry::SE3& T);
-
-/// \brief SE(3) left Jacobian in (v, w) order: exp(xi + d) ~= exp(J_l(xi) * d) * exp(xi) for
-/// small d. J_l(xi) = [J, Q; 0, J] with J the SO(3) left Jacobian of w and Q the coupling block
-/// of v and w (series expansions for small |w|). J_l(0) = I.
-geometry::Matrix6d se3_left_jacobian(const geometry::Vector6d& xi);
 
 /// \brief Settings of PoseFilter. Process model: white acceleration noise of a continuous-time
 /// constant-velocity model (consistent for any sequence of time steps: two predictions by dt/2
@@ -36,6 +28,14 @@ struct PoseFilterParams {
   double init_velocity_sigma = 0.5;          ///< m/s, velocity uncertainty after reset()
   double init_angular_velocity_sigma = 1.0;  ///< rad/s, angular velocity uncertainty after reset()
   double reference_dt = 1.0 / 30.0;          ///< s, frame interval at which the noise levels hold
+  /// Adaptive process noise: while the measurements agree with the prediction (innovation chi^2
+  /// <= motion_chi2) the noise is scaled down by noise_decay per update, to min_noise_scale (an
+  /// object at rest is reported at rest); a measurement beyond motion_chi2 restores full noise at
+  /// once, for that very update (no lag behind a real motion).
+  bool adapt_noise = false;
+  double min_noise_scale = 1e-7;  ///< smallest scale of the process noise
+  double noise_decay = 0.5;       ///< per consistent update
+  double motion_chi2 = 10.0;      ///< chi^2 (6 dof) above which a measurement shows motion (about 88 %)
 };
 
 /// \brief Extended Kalman filter on SE(3) with a constant-velocity motion model (paper section 6:
@@ -86,6 +86,8 @@ class PoseFilter {
   [[nodiscard]] Matrix12d covariance() const { return P_; }
   [[nodiscard]] geometry::Matrix6d pose_covariance() const { return P_.topLeftCorner<6, 6>(); }
   [[nodiscard]] const PoseFilterParams& params() const { return p_; }
+  /// Current scale of the process noise (1 without adaptation).
+  [[nodiscard]] double noise_scale() const { return p_.adapt_noise ? noise_scale_ : 1.0; }
   void set_params(const PoseFilterParams& p) { p_ = p; }
 
   /// Error-state transition of a time update by dt with velocity vel:
@@ -103,6 +105,8 @@ class PoseFilter {
   geometry::SE3 T_;
   geometry::Vector6d vel_ = geometry::Vector6d::Zero();
   Matrix12d P_ = Matrix12d::Zero();
+  Matrix12d last_q_ = Matrix12d::Zero();  // process noise the last time update left out (adaptation)
+  double noise_scale_ = 1.0;
   bool initialised_ = false;
 };
 

@@ -12,6 +12,8 @@ struct FrameResult {
   geometry::SE3 T_cam_obj;           ///< measured pose (or the prediction when lost)
   geometry::SE3 T_cam_obj_filtered;  ///< EKF output
   geometry::Vector6d velocity = geometry::Vector6d::Zero();  ///< EKF velocity (v, w): m/s, rad/s
+  /// Covariance of T_cam_obj: (translation m, rotation rad as a small left rotation), camera
+  /// frame; see geometry::translation_rotation_covariance.
   geometry::Matrix6d covariance = geometry::Matrix6d::Zero();
   ObjectReport report;
   double cycle_ms = 0.0;

@@ -9,6 +9,7 @@
 
 #include "v4r/core/clock.hpp"
 #include "v4r/estimation/pose_solver.hpp"
+#include "v4r/features/edge_evidence.hpp"
 #include "v4r/features/ellipse_tracker.hpp"
 #include "v4r/features/line_tracker.hpp"
 #include "v4r/filter/pose_filter.hpp"
@@ -35,9 +36,22 @@ struct BudgetParams {
 /// \brief Losing and regaining track: how far to search when a frame goes bad.
 struct RecoveryParams {
   int max_search_level = 2;       ///< search windows grow to (1 + level) * search half width
-  double lost_quality = 0.15;     ///< quality below this: the frame counts as lost
+  double lost_quality = 0.15;     ///< feature quality (used/visible, residuals) below this: the measurement is not used
   int reset_velocity_after = 2;   ///< lost frames after which the filter's velocity is dropped
   double gate_chi2 = 400.0;       ///< a degraded measurement this far from the prediction (chi^2, 6 dof) is rejected
+};
+
+/// \brief The status from image evidence: after the solve, samples along the whole projected
+/// model (every visible edge and circle, tracked or not) look for a gradient of matching position
+/// and orientation (features::EdgeEvidence). The share they find decides what is reported: below
+/// lost_evidence the pose is not supported by the image (`lost`); from tracking_evidence on, with
+/// a measurement whose features fix every direction, `tracking`; in between, or with directions
+/// held by the prediction, `degraded`. (Whether a measurement is used, and how wide the next
+/// search is, follows the features: RecoveryParams::lost_quality, CycleParams::degraded_ratio.)
+struct StatusParams {
+  features::EdgeEvidenceParams evidence;
+  double tracking_evidence = 0.5;  ///< share of matched edge samples for `tracking`
+  double lost_evidence = 0.2;      ///< below this share: `lost`
 };
 
 /// \brief Every parameter of the vision cycle, with defaults in code (units in the docs).
@@ -71,7 +85,7 @@ struct CycleParams {
   /// come from the image, the others from the prediction, and the object is `degraded`.
   bool prior_fallback = true;
   double prior_max_rms_px = 3.0;  ///< a solve without prior whose RMS residual exceeds this is redone with it
-  double degraded_ratio = 0.5;          ///< used / visible below this: status degraded
+  double degraded_ratio = 0.5;          ///< used / visible below this: a weak measurement (wider search, gated)
   int refine_passes = 2;                ///< track + solve passes per frame (later ones re-measure missed features from the new pose)
   double ambiguity_angle = 0.2;         ///< radians: edges closer than this in image direction count as parallel
   double ambiguity_margin_px = 2.0;     ///< parallel edges closer than track.half_width + this are side by side
@@ -85,8 +99,14 @@ struct CycleParams {
   double ambiguity_min_overlap = 0.2;   ///< ... if they overlap by this fraction of the shorter one
   BudgetParams budget;
   RecoveryParams recovery;
+  StatusParams status;
   bool use_filter = true;               ///< predict with the EKF (constant velocity); else constant pose
   filter::PoseFilterParams filter;
+  /// The reported pose is that of a second filter (Object::smoother) fed the same measurements,
+  /// whose process noise adapts (PoseFilterParams::adapt_noise): at rest it averages the
+  /// measurements' noise away, a motion restores full noise at once. The tracking filter, which
+  /// places the search windows, keeps the full noise. false: the measurement is reported.
+  bool smooth_output = true;
   double frame_interval_s = 1.0 / 30.0;  ///< seconds between frames when no time stamps are given
 };
 
@@ -101,6 +121,8 @@ struct ObjectReport {
   int tangent_junctions = 0;  ///< line-arc junctions with a common tangent observed (in junctions_used when inliers)
   double rms_px = 0.0;
   double quality = 0.0;
+  double evidence = 0.0;   ///< share of the projected model's edge samples confirmed by the image
+  int evidence_samples = 0;
   int iterations = 0;
   int search_level = 0;    ///< 0: normal windows; > 0 searching wider after a bad frame
   bool measurement_rejected = false;  ///< the solve was refused by the filter gate
@@ -171,6 +193,7 @@ class VisionCycle {
   void add_tangent_junctions(const model::Model& model, const scene::View& view, const scene::Camera& cam);
   void process_view(scene::Object& obj, scene::View& view, const scene::Camera& cam, const CameraImage& img,
                     ObjectReport& rep);
+  void measure_evidence(scene::View& view, const scene::Camera& cam, const CameraImage& img);
   void fuse_and_filter(scene::Scene& scene, scene::Object& obj, ObjectReport& rep, double stamp_s);
 
   void object_failed(scene::Object& obj, ObjectReport& rep, const char* what) const;
@@ -183,6 +206,7 @@ class VisionCycle {
   features::LineTracker tracker_, reduced_tracker_;
   std::vector<features::LineTracker> searchers_;  // per search level
   features::EllipseTracker ellipse_tracker_, ellipse_searcher_, reduced_ellipse_tracker_;
+  features::EdgeEvidence evidence_;
   estimation::PoseSolver solver_;
   estimation::PosePrior prior_;  // the prediction, when a view needs it
   VisibilityTester visibility_;

@@ -89,6 +89,9 @@ struct View {
   /// Information of the last solve's observations alone (camera frame, left tangent; m^-2,
   /// rad^-2), without the prior: nearly singular in the directions the features do not fix.
   geometry::Matrix6d information = geometry::Matrix6d::Zero();
+  /// Edge evidence at the view's pose after the last cycle: samples along the projected model
+  /// edges and how many of them the image confirms (features::EdgeEvidence).
+  int evidence_samples = 0, evidence_matched = 0;
 };
 
 /// Tracking state of an object.
@@ -101,17 +104,24 @@ struct Object {
   std::string name;
   std::shared_ptr<const model::Model> model;
   std::vector<View> views;
-  geometry::SE3 T_ref_obj;
+  geometry::SE3 T_ref_obj;  ///< reported pose (the filter's estimate; while lost, the prediction)
+  /// Covariance of T_ref_obj (left tangent, reference frame): of the estimate while tracked, of
+  /// the prediction (growing with time) while lost.
   geometry::Matrix6d covariance = geometry::Matrix6d::Zero();
   TrackStatus status = TrackStatus::kUninitialised;
-  double quality = 0.0;  ///< 0..1 from found-feature ratio and residuals
-  filter::PoseFilter filter;          ///< smooths T_ref_obj and predicts it (constant velocity)
+  double quality = 0.0;  ///< 0..1: edge evidence, lowered by large residuals
+  double evidence = 0.0;  ///< share of the projected model's edge samples the image confirms (all views)
+  filter::PoseFilter filter;          ///< predicts T_ref_obj for tracking (constant velocity)
+  filter::PoseFilter smoother;        ///< the same measurements with adaptive process noise: the reported pose
   geometry::SE3 T_ref_obj_filtered;   ///< filter output after the last cycle
   geometry::SE3 T_pred;               ///< prediction for the current cycle
   geometry::Matrix6d covariance_pred = geometry::Matrix6d::Zero();  ///< of T_pred (left tangent, reference frame); zero: none
   geometry::Vector6d velocity = geometry::Vector6d::Zero();  ///< (v, w) m/s, rad/s, left tangent of T_ref_obj
   double last_stamp = -1.0;           ///< seconds: time of the last cycle of this object
-  int bad_frames = 0;                 ///< consecutive degraded or lost frames
+  /// The cycle's verdict on its last measurement from the features alone (used, weak, not used):
+  /// drives the search width, the prediction and the prior; `status` is what is reported.
+  TrackStatus measured = TrackStatus::kUninitialised;
+  int bad_frames = 0;                 ///< consecutive frames whose measurement was weak or not used
   /// The pose has been measured from the image alone (a `tracking` frame) since it was last set:
   /// only then is the prediction good enough to serve as a prior (a start pose may be far off).
   bool confirmed = false;

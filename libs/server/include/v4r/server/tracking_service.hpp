@@ -160,7 +160,7 @@ class TrackingService {
   void frame_cycle(Clock::time_point released);
   void object_failed(std::size_t scene_index, const std::string& error, double stamp);
   void count_objects();
-  geometry::Matrix6d published_covariance(ObjectEntry* e, const scene::Object& o, double stamp);
+  [[nodiscard]] geometry::Matrix6d published_covariance(const scene::Object& o) const;
   void publish_overlay(const pipeline::CycleReport& rep, std::int64_t index);
   ObjectEntry* find(const std::string& name);
 
