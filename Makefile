@@ -5,8 +5,9 @@ DEB_PACKAGES := build-essential cmake ninja-build pkg-config libeigen3-dev libop
 	libcli11-dev libspdlog-dev libfmt-dev libyaml-cpp-dev libgtest-dev libgmock-dev libbenchmark-dev libassimp-dev
 # Only for `make test`: headless Chromium checks the monitoring page of `v4r serve`; ViSP's images
 # (real cube sequence, .cao models) for tests/visp_cube_test.cpp; python3 runs the README commands
-# and the protocol units test.
-TEST_PACKAGES := chromium visp-images-data python3
+# and the protocol units test; GStreamer's base and good plugins (videotestsrc, multifilesrc, pngdec)
+# for the live-camera tests.
+TEST_PACKAGES := chromium visp-images-data python3 gstreamer1.0-plugins-base gstreamer1.0-plugins-good
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 
 .PHONY: all deps test-deps configure build test demo bench fuzz clean
@@ -40,7 +41,7 @@ build: configure
 	cmake --build $(BUILD) -j $(JOBS)
 
 test: build test-deps
-	cd $(BUILD) && V4R_REQUIRE_CHROMIUM=1 V4R_REQUIRE_VISP_IMAGES=1 ctest --output-on-failure -j $(JOBS) --timeout 600
+	cd $(BUILD) && V4R_REQUIRE_CHROMIUM=1 V4R_REQUIRE_VISP_IMAGES=1 V4R_REQUIRE_GSTREAMER=1 ctest --output-on-failure -j $(JOBS) --timeout 600
 
 demo: build
 	$(BUILD)/bin/v4r demo --out $(BUILD)/demo

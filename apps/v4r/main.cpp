@@ -270,7 +270,7 @@ int main(int argc, char** argv) {
     track->add_option("--model", to.model_path, kModelHelp)->required();
     track->add_option("--camera", to.camera_path, "Calibration: OpenCV YAML/XML, ROS camera_info YAML or ViSP XML")
         ->required();
-    track->add_option("--input", to.input, "Image folder, printf pattern (frames/%06d.png) or video")->required();
+    track->add_option("--input", to.input, "Image folder, printf pattern (frames/%06d.png), video, camera /dev/videoN or gst:PIPELINE")->required();
     auto* ipf = track->add_option("--init-pose-file", to.init_pose_file, "File with 'tx ty tz rx ry rz' (T_cam_obj)");
     auto* ip = track->add_option("--init-pose", init_pose_str, "Initial T_cam_obj: \"tx ty tz rx ry rz\" (m, rad)");
     ipf->excludes(ip);

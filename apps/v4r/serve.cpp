@@ -12,6 +12,7 @@
 
 #include "v4r/io/camera_io.hpp"
 #include "v4r/io/config_io.hpp"
+#include "v4r/io/frame_source.hpp"
 #include "v4r/pipeline/params.hpp"
 #include "v4r/server/server.hpp"
 
@@ -27,6 +28,7 @@ struct ServeArgs {
   int http_port = -1;
   std::string config_file;
   std::vector<std::string> sets;
+  bool fps_given = false;
 };
 
 int run_serve(ServeArgs& a) {
@@ -37,6 +39,8 @@ int run_serve(ServeArgs& a) {
   }
   a.opt.camera = *cam;
   a.opt.port = static_cast<std::uint16_t>(a.port);
+  // A live camera sets the pace itself: each frame is taken as soon as it arrives (unless --fps).
+  if (io::is_live_input(a.opt.input) && !a.fps_given) a.opt.fps = 0.0;
   a.opt.http_port = a.http_port;
   if (a.opt.token.empty()) {
     // The token can also come from the environment, where `ps` does not show it.
@@ -81,10 +85,12 @@ void add_serve_command(CLI::App& app, int& exit_code) {
   auto a = std::make_shared<ServeArgs>();
   auto* serve = app.add_subcommand("serve", "Run the tracker as a TCP service (protocol: docs/protocol.md)");
   serve->add_option("--camera", a->camera_path, "Calibration (OpenCV or ROS camera_info YAML)")->required();
-  serve->add_option("--input", a->opt.input, "Image folder, printf pattern (frames/%06d.png) or video")->required();
-  serve->add_option("--fps", a->opt.fps, "Frames per second the input is played at (0: as fast as processed)")
+  serve->add_option("--input", a->opt.input, "Image folder, printf pattern (frames/%06d.png), video, camera /dev/videoN or gst:PIPELINE")->required();
+  serve->add_option("--fps", a->opt.fps,
+                    "Frames per second the input is played at (0: as fast as processed; a live camera: its own rate)")
       ->check(CLI::Range(0.0, 10000.0))
-      ->capture_default_str();
+      ->capture_default_str()
+      ->each([a](const std::string&) { a->fps_given = true; });
   serve->add_option("--port", a->port, "Protocol port (0: any free port)")->check(CLI::Range(0, 65535))->capture_default_str();
   serve->add_option("--bind", a->opt.bind, "Listening address; anything but loopback requires --token")->capture_default_str();
   serve->add_option("--http", a->http_port, "Port of the monitoring page (/, /stream.mjpg, /status.json)")
