@@ -7,11 +7,13 @@ DEB_PACKAGES := build-essential cmake ninja-build pkg-config libeigen3-dev libop
 # (real cube sequence, .cao models) for tests/visp_cube_test.cpp; python3 runs the README commands
 # and the protocol units test; GStreamer's base and good plugins (videotestsrc, multifilesrc, pngdec)
 # for the live-camera tests.
-# ROS 1 (issue 12): the node's libraries, and rosmaster, rosbag, rostopic and rospy for its test.
+# ROS 1 (issue 12): the node's libraries, and rosmaster, rosbag, rostopic and rospy for its test;
+# ROS 2 on the wire: Cyclone DDS (serve --ros2) and Fast DDS (the independent reader of its test).
 TEST_PACKAGES := chromium visp-images-data python3 gstreamer1.0-plugins-base gstreamer1.0-plugins-good \
 	libroscpp-dev libsensor-msgs-dev libgeometry-msgs-dev libstd-msgs-dev libtf2-ros-dev \
 	python3-rosmaster python3-rosbag python3-rostopic python3-rospy python3-sensor-msgs python3-geometry-msgs \
-	python3-std-msgs python3-opencv
+	python3-std-msgs python3-opencv \
+	cyclonedds-dev cyclonedds-tools libfastrtps-dev
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 
 .PHONY: all deps test-deps configure build test demo bench fuzz clean

@@ -15,6 +15,9 @@
 #include "v4r/io/frame_source.hpp"
 #include "v4r/pipeline/params.hpp"
 #include "v4r/server/server.hpp"
+#if V4R_HAVE_ROS2
+#include "v4r/ros2/ros2_publisher.hpp"
+#endif
 
 namespace v4r::app {
 
@@ -29,6 +32,10 @@ struct ServeArgs {
   std::string config_file;
   std::vector<std::string> sets;
   bool fps_given = false;
+  bool ros2 = false;  ///< --ros2: publish on ROS 2 topics (DDS)
+  int ros2_domain = 0;
+  std::string ros2_namespace = "/v4r";
+  std::string ros2_frame_id = "camera_optical_frame";
 };
 
 int run_serve(ServeArgs& a) {
@@ -62,6 +69,28 @@ int run_serve(ServeArgs& a) {
       return 1;
     }
   }
+#if V4R_HAVE_ROS2
+  std::unique_ptr<ros2::Ros2Publisher> ros2_pub;
+  if (a.ros2) {
+    auto pub = ros2::Ros2Publisher::create(
+        ros2::Ros2Options{.domain = a.ros2_domain, .ns = a.ros2_namespace, .frame_id = a.ros2_frame_id});
+    if (!pub) {
+      fmt::print(stderr, "v4r serve: error: --ros2: {}\n", pub.error().to_string());
+      return 1;
+    }
+    ros2_pub = std::move(*pub);
+    a.opt.frame_observer = [p = ros2_pub.get()](const server::FrameEvents& f) { p->publish(f); };
+    fmt::print("v4r serve: ROS 2 (DDS domain {}): {}/<object>/pose, {}/<object>/status, /tf in frame {}\n",
+               a.ros2_domain, a.ros2_namespace == "/" ? "" : a.ros2_namespace,
+               a.ros2_namespace == "/" ? "" : a.ros2_namespace, a.ros2_frame_id);
+  }
+#else
+  if (a.ros2) {
+    fmt::print(stderr, "v4r serve: error: --ros2: this v4r was built without ROS 2 (install cyclonedds-dev and "
+                       "cyclonedds-tools, then build again)\n");
+    return 1;
+  }
+#endif
   auto srv = server::Server::create(a.opt);
   if (!srv) {
     fmt::print(stderr, "v4r serve: error: {}\n", srv.error().to_string());
@@ -109,6 +138,15 @@ void add_serve_command(CLI::App& app, int& exit_code) {
                     "Folder that `Log on file=` may write (default: none, `file=` is refused)");
   serve->add_option("--config", a->config_file, "YAML file of tracker parameters (see `v4r config`)");
   serve->add_option("--set", a->sets, "Set one parameter: --set track.rows=32 (repeatable)");
+  serve->add_flag("--ros2", a->ros2,
+                  "Publish poses, status and /tf as ROS 2 messages over DDS (Cyclone; CYCLONEDDS_URI applies)");
+  serve->add_option("--ros2-domain", a->ros2_domain, "DDS domain id (ROS_DOMAIN_ID)")
+      ->check(CLI::Range(0, 232))
+      ->capture_default_str();
+  serve->add_option("--ros2-namespace", a->ros2_namespace, "ROS namespace of the per-object topics")
+      ->capture_default_str();
+  serve->add_option("--ros2-frame-id", a->ros2_frame_id, "frame_id of the headers (the camera's optical frame)")
+      ->capture_default_str();
   serve->callback([a, &exit_code] { exit_code = run_serve(*a); });
 }
 
