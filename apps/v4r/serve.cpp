@@ -2,6 +2,7 @@
 // `v4r serve`: the tracker as a TCP service (docs/protocol.md).
 // Compiled only once apps/v4r links v4r::server (until then the header is not on the path).
 #if __has_include("v4r/server/server.hpp")
+#include <chrono>
 #include <cstdlib>
 #include <memory>
 #include <string>
@@ -16,6 +17,7 @@
 #include "v4r/pipeline/params.hpp"
 #include "v4r/server/server.hpp"
 #if V4R_HAVE_ROS2
+#include "v4r/ros2/image_source.hpp"
 #include "v4r/ros2/ros2_publisher.hpp"
 #endif
 
@@ -39,7 +41,29 @@ struct ServeArgs {
 };
 
 int run_serve(ServeArgs& a) {
-  auto cam = io::load_camera(a.camera_path);
+  const bool ros2_input = a.opt.input.starts_with("ros2:");
+  Expected<geometry::PinholeCamera> cam = make_error("");
+#if V4R_HAVE_ROS2
+  ros2::register_image_input(a.ros2_domain);
+  if (ros2_input && a.camera_path.empty()) {
+    fmt::print("v4r serve: waiting for camera_info of {} (DDS domain {})\n", a.opt.input, a.ros2_domain);
+    std::fflush(stdout);
+    cam = ros2::wait_camera_info(a.opt.input, a.ros2_domain, std::chrono::seconds(30));
+  }
+#else
+  if (ros2_input) {
+    fmt::print(stderr, "v4r serve: error: --input {}: this v4r was built without ROS 2 (install cyclonedds-dev and "
+                       "cyclonedds-tools, then build again)\n", a.opt.input);
+    return 1;
+  }
+#endif
+  if (!a.camera_path.empty()) {
+    cam = io::load_camera(a.camera_path);
+  } else if (!ros2_input) {
+    fmt::print(stderr, "v4r serve: error: --camera is required (except with --input ros2:..., whose camera_info "
+                       "is used)\n");
+    return 1;
+  }
   if (!cam) {
     fmt::print(stderr, "v4r serve: error: {}\n", cam.error().to_string());
     return 1;
@@ -47,7 +71,7 @@ int run_serve(ServeArgs& a) {
   a.opt.camera = *cam;
   a.opt.port = static_cast<std::uint16_t>(a.port);
   // A live camera sets the pace itself: each frame is taken as soon as it arrives (unless --fps).
-  if (io::is_live_input(a.opt.input) && !a.fps_given) a.opt.fps = 0.0;
+  if ((io::is_live_input(a.opt.input) || ros2_input) && !a.fps_given) a.opt.fps = 0.0;
   a.opt.http_port = a.http_port;
   if (a.opt.token.empty()) {
     // The token can also come from the environment, where `ps` does not show it.
@@ -113,8 +137,10 @@ int run_serve(ServeArgs& a) {
 void add_serve_command(CLI::App& app, int& exit_code) {
   auto a = std::make_shared<ServeArgs>();
   auto* serve = app.add_subcommand("serve", "Run the tracker as a TCP service (protocol: docs/protocol.md)");
-  serve->add_option("--camera", a->camera_path, "Calibration (OpenCV or ROS camera_info YAML)")->required();
-  serve->add_option("--input", a->opt.input, "Image folder, printf pattern (frames/%06d.png), video, camera /dev/videoN or gst:PIPELINE")->required();
+  serve->add_option("--camera", a->camera_path,
+                    "Calibration (OpenCV or ROS camera_info YAML); required except with --input ros2:..., whose "
+                    "camera_info is used when it is not given");
+  serve->add_option("--input", a->opt.input, "Image folder, printf pattern (frames/%06d.png), video, camera /dev/videoN, gst:PIPELINE or ros2:/camera")->required();
   serve->add_option("--fps", a->opt.fps,
                     "Frames per second the input is played at (0: as fast as processed; a live camera: its own rate)")
       ->check(CLI::Range(0.0, 10000.0))

@@ -26,6 +26,7 @@
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
 #include <opencv2/videoio/registry.hpp>
+#include <mutex>
 #include <optional>
 #include <string_view>
 #include <system_error>
@@ -307,8 +308,47 @@ Expected<std::unique_ptr<FrameSource>> open_pattern(const std::string& input, co
 
 }  // namespace
 
+namespace {
+
+struct Scheme {
+  std::string prefix;
+  FrameSource::Opener opener;
+};
+
+std::mutex& schemes_mutex() {
+  static std::mutex m;
+  return m;
+}
+
+std::vector<Scheme>& schemes() {
+  static std::vector<Scheme> s;
+  return s;
+}
+
+}  // namespace
+
+void FrameSource::register_scheme(const std::string& prefix, Opener opener) {
+  std::scoped_lock lock(schemes_mutex());
+  for (Scheme& s : schemes()) {
+    if (s.prefix == prefix) {
+      s.opener = std::move(opener);
+      return;
+    }
+  }
+  schemes().push_back(Scheme{prefix, std::move(opener)});
+}
+
 Expected<std::unique_ptr<FrameSource>> FrameSource::open(const std::string& input) {
   if (input.empty()) return Error{"input not found: (empty path)", input, 0, 0, {}};
+  {
+    Opener opener;
+    {
+      std::scoped_lock lock(schemes_mutex());
+      for (const Scheme& s : schemes())
+        if (input.starts_with(s.prefix)) opener = s.opener;
+    }
+    if (opener) return opener(input);
+  }
   if (is_live_input(input)) return open_live(input);
   std::error_code ec;
   const fs::file_status st = fs::status(input, ec);

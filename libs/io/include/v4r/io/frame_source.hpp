@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 
@@ -44,6 +45,15 @@ class FrameSource {
   [[nodiscard]] virtual double capture_time_s() const { return -1.0; }
   /// Frames a live source received but never handed out because a newer one came first.
   [[nodiscard]] virtual std::int64_t dropped() const { return 0; }
+  /// The last frame's own time stamp (seconds since the epoch, e.g. a ROS message header), or a
+  /// negative number when frames carry none.
+  [[nodiscard]] virtual double stamp_s() const { return -1.0; }
+
+  /// Opens the inputs whose name starts with a registered prefix (middleware modules register
+  /// theirs, e.g. "ros2:"); consulted by open() before anything else.
+  using Opener = std::function<Expected<std::unique_ptr<FrameSource>>(const std::string& input)>;
+  /// Registers (or replaces) the opener of inputs starting with `prefix`. Call at start-up.
+  static void register_scheme(const std::string& prefix, Opener opener);
 };
 
 /// True for inputs that name a live camera: `/dev/videoN` (V4L2) or `gst:PIPELINE` (GStreamer).
