@@ -64,14 +64,13 @@ class LiveSource final : public FrameSource {
       latest_.copyTo(bgr);  // reuses bgr's buffer when the size is unchanged
       lock.unlock();
       ++index_;
-      current_ = fmt::format("{}#{}", name_, index_ - 1);
       return true;
     }
     if (!got) return Error{fmt::format("no frame from {} for {} s", name_, kNoFrameTimeout.count()), name_, 0, 0, {}};
     if (!error_.empty()) return Error{error_, name_, 0, 0, {}};
     return false;
   }
-  [[nodiscard]] std::string current_name() const override { return current_; }
+  [[nodiscard]] std::string current_name() const override { return fmt::format("{}#{}", name_, index_ - 1); }
   [[nodiscard]] int size_hint() const override { return -1; }
   [[nodiscard]] double nominal_fps() const override { return fps_; }
   [[nodiscard]] bool live() const override { return true; }
@@ -134,7 +133,6 @@ class LiveSource final : public FrameSource {
   // The consumer's (next()'s caller's) own.
   std::int64_t index_ = 0;
   double capture_s_ = -1.0;
-  std::string current_;
 };
 
 Expected<std::unique_ptr<FrameSource>> open_device(const std::string& device) {
