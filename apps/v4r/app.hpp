@@ -1,6 +1,7 @@
 // v4r - robust model-based object tracking. MIT licence.
 #pragma once
 
+#include <cstdint>
 #include <memory>
 #include <optional>
 #include <string>
@@ -48,6 +49,7 @@ struct TrackSummary {
   double fps = 0.0;        ///< frame rate of the time stamps (0: file times)
   std::string timing;      ///< where the time stamps came from
   std::size_t warnings = 0;  ///< plausibility warnings printed
+  std::int64_t dropped = 0;  ///< live input: frames dropped because a newer one came first
 };
 
 /// The .cao text of a built-in model (box, ship, flange, section), or nothing.

@@ -1,6 +1,7 @@
 // v4r - robust model-based object tracking. MIT licence.
 // The v4r command line: track, render, demo, bench, inspect-model.
 #include <cctype>
+#include <cstdlib>
 #include <exception>
 #include <filesystem>
 #include <fstream>
@@ -12,6 +13,9 @@
 #include <opencv2/imgproc.hpp>
 
 #include "app.hpp"
+#if V4R_HAVE_ROS2
+#include "v4r/ros2/image_source.hpp"
+#endif
 #include "inspect.hpp"
 #include "plausibility.hpp"
 #include "progress.hpp"
@@ -256,6 +260,15 @@ constexpr const char* kModelHelp = "box, ship, flange, section, a .cao file or a
 }  // namespace
 
 int main(int argc, char** argv) {
+#if V4R_HAVE_ROS2
+  {
+    // `--input ros2:/camera` (ROS 2 images over DDS), in the domain ROS_DOMAIN_ID (default 0);
+    // `v4r serve` registers it again with --ros2-domain.
+    const char* d = std::getenv("ROS_DOMAIN_ID");
+    const int domain = d ? std::atoi(d) : 0;
+    v4r::ros2::register_image_input(domain >= 0 && domain <= 232 ? domain : 0);
+  }
+#endif
   try {
     CLI::App app{"v4r: real-time 6-DoF tracking of CAD-modelled objects"};
     app.require_subcommand(1);
@@ -270,7 +283,7 @@ int main(int argc, char** argv) {
     track->add_option("--model", to.model_path, kModelHelp)->required();
     track->add_option("--camera", to.camera_path, "Calibration: OpenCV YAML/XML, ROS camera_info YAML or ViSP XML")
         ->required();
-    track->add_option("--input", to.input, "Image folder, printf pattern (frames/%06d.png) or video")->required();
+    track->add_option("--input", to.input, "Image folder, printf pattern (frames/%06d.png), video, camera /dev/videoN, gst:PIPELINE or ros2:/camera")->required();
     auto* ipf = track->add_option("--init-pose-file", to.init_pose_file, "File with 'tx ty tz rx ry rz' (T_cam_obj)");
     auto* ip = track->add_option("--init-pose", init_pose_str, "Initial T_cam_obj: \"tx ty tz rx ry rz\" (m, rad)");
     ipf->excludes(ip);

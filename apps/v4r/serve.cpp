@@ -2,6 +2,7 @@
 // `v4r serve`: the tracker as a TCP service (docs/protocol.md).
 // Compiled only once apps/v4r links v4r::server (until then the header is not on the path).
 #if __has_include("v4r/server/server.hpp")
+#include <chrono>
 #include <cstdlib>
 #include <memory>
 #include <string>
@@ -12,8 +13,13 @@
 
 #include "v4r/io/camera_io.hpp"
 #include "v4r/io/config_io.hpp"
+#include "v4r/io/frame_source.hpp"
 #include "v4r/pipeline/params.hpp"
 #include "v4r/server/server.hpp"
+#if V4R_HAVE_ROS2
+#include "v4r/ros2/image_source.hpp"
+#include "v4r/ros2/ros2_publisher.hpp"
+#endif
 
 namespace v4r::app {
 
@@ -27,16 +33,45 @@ struct ServeArgs {
   int http_port = -1;
   std::string config_file;
   std::vector<std::string> sets;
+  bool fps_given = false;
+  bool ros2 = false;  ///< --ros2: publish on ROS 2 topics (DDS)
+  int ros2_domain = 0;
+  std::string ros2_namespace = "/v4r";
+  std::string ros2_frame_id = "camera_optical_frame";
 };
 
 int run_serve(ServeArgs& a) {
-  auto cam = io::load_camera(a.camera_path);
+  const bool ros2_input = a.opt.input.starts_with("ros2:");
+  Expected<geometry::PinholeCamera> cam = make_error("");
+#if V4R_HAVE_ROS2
+  ros2::register_image_input(a.ros2_domain);
+  if (ros2_input && a.camera_path.empty()) {
+    fmt::print("v4r serve: waiting for camera_info of {} (DDS domain {})\n", a.opt.input, a.ros2_domain);
+    std::fflush(stdout);
+    cam = ros2::wait_camera_info(a.opt.input, a.ros2_domain, std::chrono::seconds(30));
+  }
+#else
+  if (ros2_input) {
+    fmt::print(stderr, "v4r serve: error: --input {}: this v4r was built without ROS 2 (install cyclonedds-dev and "
+                       "cyclonedds-tools, then build again)\n", a.opt.input);
+    return 1;
+  }
+#endif
+  if (!a.camera_path.empty()) {
+    cam = io::load_camera(a.camera_path);
+  } else if (!ros2_input) {
+    fmt::print(stderr, "v4r serve: error: --camera is required (except with --input ros2:..., whose camera_info "
+                       "is used)\n");
+    return 1;
+  }
   if (!cam) {
     fmt::print(stderr, "v4r serve: error: {}\n", cam.error().to_string());
     return 1;
   }
   a.opt.camera = *cam;
   a.opt.port = static_cast<std::uint16_t>(a.port);
+  // A live camera sets the pace itself: each frame is taken as soon as it arrives (unless --fps).
+  if ((io::is_live_input(a.opt.input) || ros2_input) && !a.fps_given) a.opt.fps = 0.0;
   a.opt.http_port = a.http_port;
   if (a.opt.token.empty()) {
     // The token can also come from the environment, where `ps` does not show it.
@@ -58,6 +93,28 @@ int run_serve(ServeArgs& a) {
       return 1;
     }
   }
+#if V4R_HAVE_ROS2
+  std::unique_ptr<ros2::Ros2Publisher> ros2_pub;
+  if (a.ros2) {
+    auto pub = ros2::Ros2Publisher::create(
+        ros2::Ros2Options{.domain = a.ros2_domain, .ns = a.ros2_namespace, .frame_id = a.ros2_frame_id});
+    if (!pub) {
+      fmt::print(stderr, "v4r serve: error: --ros2: {}\n", pub.error().to_string());
+      return 1;
+    }
+    ros2_pub = std::move(*pub);
+    a.opt.frame_observer = [p = ros2_pub.get()](const server::FrameEvents& f) { p->publish(f); };
+    fmt::print("v4r serve: ROS 2 (DDS domain {}): {}/<object>/pose, {}/<object>/status, /tf in frame {}\n",
+               a.ros2_domain, a.ros2_namespace == "/" ? "" : a.ros2_namespace,
+               a.ros2_namespace == "/" ? "" : a.ros2_namespace, a.ros2_frame_id);
+  }
+#else
+  if (a.ros2) {
+    fmt::print(stderr, "v4r serve: error: --ros2: this v4r was built without ROS 2 (install cyclonedds-dev and "
+                       "cyclonedds-tools, then build again)\n");
+    return 1;
+  }
+#endif
   auto srv = server::Server::create(a.opt);
   if (!srv) {
     fmt::print(stderr, "v4r serve: error: {}\n", srv.error().to_string());
@@ -80,11 +137,15 @@ int run_serve(ServeArgs& a) {
 void add_serve_command(CLI::App& app, int& exit_code) {
   auto a = std::make_shared<ServeArgs>();
   auto* serve = app.add_subcommand("serve", "Run the tracker as a TCP service (protocol: docs/protocol.md)");
-  serve->add_option("--camera", a->camera_path, "Calibration (OpenCV or ROS camera_info YAML)")->required();
-  serve->add_option("--input", a->opt.input, "Image folder, printf pattern (frames/%06d.png) or video")->required();
-  serve->add_option("--fps", a->opt.fps, "Frames per second the input is played at (0: as fast as processed)")
+  serve->add_option("--camera", a->camera_path,
+                    "Calibration (OpenCV or ROS camera_info YAML); required except with --input ros2:..., whose "
+                    "camera_info is used when it is not given");
+  serve->add_option("--input", a->opt.input, "Image folder, printf pattern (frames/%06d.png), video, camera /dev/videoN, gst:PIPELINE or ros2:/camera")->required();
+  serve->add_option("--fps", a->opt.fps,
+                    "Frames per second the input is played at (0: as fast as processed; a live camera: its own rate)")
       ->check(CLI::Range(0.0, 10000.0))
-      ->capture_default_str();
+      ->capture_default_str()
+      ->each([a](const std::string&) { a->fps_given = true; });
   serve->add_option("--port", a->port, "Protocol port (0: any free port)")->check(CLI::Range(0, 65535))->capture_default_str();
   serve->add_option("--bind", a->opt.bind, "Listening address; anything but loopback requires --token")->capture_default_str();
   serve->add_option("--http", a->http_port, "Port of the monitoring page (/, /stream.mjpg, /status.json)")
@@ -103,6 +164,15 @@ void add_serve_command(CLI::App& app, int& exit_code) {
                     "Folder that `Log on file=` may write (default: none, `file=` is refused)");
   serve->add_option("--config", a->config_file, "YAML file of tracker parameters (see `v4r config`)");
   serve->add_option("--set", a->sets, "Set one parameter: --set track.rows=32 (repeatable)");
+  serve->add_flag("--ros2", a->ros2,
+                  "Publish poses, status and /tf as ROS 2 messages over DDS (Cyclone; CYCLONEDDS_URI applies)");
+  serve->add_option("--ros2-domain", a->ros2_domain, "DDS domain id (ROS_DOMAIN_ID)")
+      ->check(CLI::Range(0, 232))
+      ->capture_default_str();
+  serve->add_option("--ros2-namespace", a->ros2_namespace, "ROS namespace of the per-object topics")
+      ->capture_default_str();
+  serve->add_option("--ros2-frame-id", a->ros2_frame_id, "frame_id of the headers (the camera's optical frame)")
+      ->capture_default_str();
   serve->callback([a, &exit_code] { exit_code = run_serve(*a); });
 }
 

@@ -77,16 +77,18 @@ int features_used(const scene::Scene& scene) {
 
 /// How frames are stamped: the text says where the times come from.
 struct Timing {
-  double fps = 0.0;  ///< frames per second, or 0 for file times
+  double fps = 0.0;  ///< frames per second, or 0 for file or capture times
   bool file_times = false;
+  bool capture_times = false;  ///< a live camera: when each frame was grabbed
   std::string source;
 };
 
 Timing choose_timing(const TrackOptions& opt, const io::FrameSource& src) {
-  if (opt.fps > 0.0) return {opt.fps, false, "--fps"};
-  if (opt.file_times) return {0.0, true, "image file times"};
-  if (src.nominal_fps() > 0.0) return {src.nominal_fps(), false, "the video's frame rate"};
-  return {1.0 / opt.params.frame_interval_s, false, "filter.frame_interval"};
+  if (opt.fps > 0.0) return {opt.fps, false, false, "--fps"};
+  if (opt.file_times) return {0.0, true, false, "image file times"};
+  if (src.live()) return {0.0, false, true, "capture times"};
+  if (src.nominal_fps() > 0.0) return {src.nominal_fps(), false, false, "the video's frame rate"};
+  return {1.0 / opt.params.frame_interval_s, false, false, "filter.frame_interval"};
 }
 
 }  // namespace
@@ -184,6 +186,10 @@ Expected<TrackSummary> run_track(const TrackOptions& opt) {
       if (t < 0.0) return make_error((*source)->current_name(), 0, 0, "no file time for this frame (--file-times)");
       if (first_file_time < 0.0) first_file_time = t;
       stamp = t - first_file_time;
+    } else if (timing.capture_times) {
+      const double t = (*source)->capture_time_s();
+      if (first_file_time < 0.0) first_file_time = t;
+      stamp = t - first_file_time;
     }
     const pipeline::FrameResult r = tracker->track(io::as_view(grey), io::as_colour_view(frame), stamp);
     s.poses.push_back(r.T_cam_obj);
@@ -235,6 +241,7 @@ Expected<TrackSummary> run_track(const TrackOptions& opt) {
     bar.update(s.frames, s.lost);
   }
   bar.finish();
+  s.dropped = (*source)->dropped();
   if (s.frames == 0) return make_error(opt.input, 0, 0, "the input holds no frames");
   return s;
 }
@@ -278,6 +285,7 @@ int cmd_track(const TrackOptions& opt) {
     print_report(*s, opt.gt_csv.empty() ? nullptr : &truth);
     const std::string time = s->fps > 0.0 ? fmt::format("{} fps ({})", s->fps, s->timing) : s->timing;
     fmt::print("time stamps: {}\n", time);
+    if (s->dropped > 0) fmt::print("live input: {} frames dropped (the tracker took the newest)\n", s->dropped);
     if (!opt.output_csv.empty()) fmt::print("wrote {} ({} rows)\n", opt.output_csv, s->frames);
     if (!opt.overlay.empty()) fmt::print("wrote {} (overlay)\n", opt.overlay);
   }

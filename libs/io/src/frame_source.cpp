@@ -1,6 +1,7 @@
 // v4r - robust model-based object tracking. MIT licence.
 //
-// Frame sources: a folder of images, a printf-style file pattern, a single image or a video.
+// Frame sources: a folder of images, a printf-style file pattern, a single image or a video
+// (live cameras: live_source.cpp).
 //
 // Decoding: images are read with IMREAD_ANYDEPTH | IMREAD_ANYCOLOR (EXIF orientation applied),
 // so grey images stay 1-channel and colour images are 3-channel BGR; an alpha channel is
@@ -10,6 +11,8 @@
 // the caller may skip it and call next() again.
 
 #include "v4r/io/frame_source.hpp"
+
+#include "live_source.hpp"
 
 #include <fmt/format.h>
 
@@ -23,6 +26,7 @@
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
 #include <opencv2/videoio/registry.hpp>
+#include <mutex>
 #include <optional>
 #include <string_view>
 #include <system_error>
@@ -304,8 +308,48 @@ Expected<std::unique_ptr<FrameSource>> open_pattern(const std::string& input, co
 
 }  // namespace
 
+namespace {
+
+struct Scheme {
+  std::string prefix;
+  FrameSource::Opener opener;
+};
+
+std::mutex& schemes_mutex() {
+  static std::mutex m;
+  return m;
+}
+
+std::vector<Scheme>& schemes() {
+  static std::vector<Scheme> s;
+  return s;
+}
+
+}  // namespace
+
+void FrameSource::register_scheme(const std::string& prefix, Opener opener) {
+  std::scoped_lock lock(schemes_mutex());
+  for (Scheme& s : schemes()) {
+    if (s.prefix == prefix) {
+      s.opener = std::move(opener);
+      return;
+    }
+  }
+  schemes().push_back(Scheme{prefix, std::move(opener)});
+}
+
 Expected<std::unique_ptr<FrameSource>> FrameSource::open(const std::string& input) {
   if (input.empty()) return Error{"input not found: (empty path)", input, 0, 0, {}};
+  {
+    Opener opener;
+    {
+      std::scoped_lock lock(schemes_mutex());
+      for (const Scheme& s : schemes())
+        if (input.starts_with(s.prefix)) opener = s.opener;
+    }
+    if (opener) return opener(input);
+  }
+  if (is_live_input(input)) return open_live(input);
   std::error_code ec;
   const fs::file_status st = fs::status(input, ec);
   if (fs::is_directory(st)) return open_directory(input);

@@ -80,7 +80,7 @@ struct Server::Impl final : SessionHost {
   bool encoding_ = false;
 
   std::atomic<std::size_t> clients_{0};
-  std::atomic<std::uint64_t> connections_{0}, refused_{0}, slow_{0}, net_faults_{0};
+  std::atomic<std::uint64_t> connections_{0}, refused_{0}, slow_{0}, net_faults_{0}, observer_faults_{0};
   std::atomic<std::size_t> peak_lines_{0}, peak_bytes_{0};
   std::atomic<bool> stopping_{false};
   std::atomic<std::size_t> payload_bytes_{0};
@@ -150,6 +150,14 @@ struct Server::Impl final : SessionHost {
 
   /// Tracking thread: hands the frame's events to the network thread.
   void on_frame(std::shared_ptr<const FrameEvents> ev) {
+    if (opt_.frame_observer) {
+      try {
+        opt_.frame_observer(*ev);
+      } catch (const std::exception& e) {
+        ++observer_faults_;
+        V4R_LOG_ERROR("v4r serve: frame observer failed: {}", e.what());
+      }
+    }
     {
       std::scoped_lock lock(release_mutex_);
       if (released_.size() < kMaxReleaseTimes) released_.push_back(ev->released);
@@ -367,7 +375,7 @@ ServerStats Server::stats() const {
   s.refused = impl_->refused_.load();
   s.disconnected_slow = impl_->slow_.load();
   s.objects_failed = impl_->service_->objects_failed();
-  s.faults = impl_->service_->faults() + impl_->net_faults_.load();
+  s.faults = impl_->service_->faults() + impl_->net_faults_.load() + impl_->observer_faults_.load();
   s.tracking_alive = impl_->service_->healthy();
   s.peak_write_lines = impl_->peak_lines_.load();
   s.peak_write_bytes = impl_->peak_bytes_.load();

@@ -555,7 +555,14 @@ void TrackingService::process_frame(Clock::time_point released) {
     grey_ = frame_;
   }
   const std::int64_t index = next_frame_++;
-  const double stamp = opt_.fps > 0.0 ? static_cast<double>(index) / opt_.fps : -1.0;
+  // A live camera stamps its frames with their capture time (frames it dropped leave gaps), a
+  // frame with a stamp of its own (ROS image) with that; other inputs by their index at the play rate.
+  double stamp = opt_.fps > 0.0 ? static_cast<double>(index) / opt_.fps : -1.0;
+  if (const double captured = source_->capture_time_s(); source_->live() && captured >= 0.0) {
+    if (first_capture_s_ < 0.0) first_capture_s_ = captured;
+    stamp = captured - first_capture_s_;
+  }
+  if (const double own = source_->stamp_s(); own >= 0.0) stamp = own;  // e.g. a ROS image's header
   const pipeline::CameraImage img{io::as_view(grey_), io::as_colour_view(frame_)};
   const pipeline::CycleReport& rep = cycle_.process(scene_, std::span<const pipeline::CameraImage>(&img, 1), stamp);
 

@@ -1,6 +1,8 @@
 // v4r - robust model-based object tracking. MIT licence.
 #pragma once
 
+#include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 
@@ -13,12 +15,15 @@
 namespace v4r::io {
 
 /// \brief A sequence of input frames: a folder of images (sorted by name), a printf pattern
-/// (`frames/%06d.png`, counted from 0 or from the first index that exists), or a video file.
+/// (`frames/%06d.png`, counted from 0 or from the first index that exists), a video file, or a
+/// live camera: `/dev/videoN` (V4L2) or `gst:PIPELINE` (a GStreamer pipeline; an appsink is
+/// appended when it has none). Live sources hand out the newest frame and drop the ones the
+/// caller was too slow for (dropped()).
 class FrameSource {
  public:
   virtual ~FrameSource() = default;
 
-  /// Opens INPUT; errors name it (missing, empty folder, unreadable video...).
+  /// Opens INPUT; errors name it (missing, empty folder, unreadable video, missing camera...).
   static Expected<std::unique_ptr<FrameSource>> open(const std::string& input);
 
   /// Reads the next frame into `bgr` (8-bit, 1 or 3 channels as stored). Returns false at the
@@ -33,7 +38,26 @@ class FrameSource {
   /// Modification time of the last frame's file, seconds since the epoch (sub-second where the
   /// file system keeps it), or a negative number when the frame has no file of its own (video).
   [[nodiscard]] virtual double file_time_s() const { return -1.0; }
+  /// True for a live camera: frames come at the camera's rate, the newest one is handed out.
+  [[nodiscard]] virtual bool live() const { return false; }
+  /// When the last frame was captured (steady clock, seconds), or a negative number for inputs
+  /// that are not live.
+  [[nodiscard]] virtual double capture_time_s() const { return -1.0; }
+  /// Frames a live source received but never handed out because a newer one came first.
+  [[nodiscard]] virtual std::int64_t dropped() const { return 0; }
+  /// The last frame's own time stamp (seconds since the epoch, e.g. a ROS message header), or a
+  /// negative number when frames carry none.
+  [[nodiscard]] virtual double stamp_s() const { return -1.0; }
+
+  /// Opens the inputs whose name starts with a registered prefix (middleware modules register
+  /// theirs, e.g. "ros2:"); consulted by open() before anything else.
+  using Opener = std::function<Expected<std::unique_ptr<FrameSource>>(const std::string& input)>;
+  /// Registers (or replaces) the opener of inputs starting with `prefix`. Call at start-up.
+  static void register_scheme(const std::string& prefix, Opener opener);
 };
+
+/// True for inputs that name a live camera: `/dev/videoN` (V4L2) or `gst:PIPELINE` (GStreamer).
+bool is_live_input(const std::string& input);
 
 /// View of an 8-bit single-channel cv::Mat (no copy; the Mat must outlive the view).
 inline image::ImageView as_view(const cv::Mat& grey) {

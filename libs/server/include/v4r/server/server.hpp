@@ -16,6 +16,8 @@
 
 namespace v4r::server {
 
+struct FrameEvents;
+
 /// \brief Everything `v4r serve` is configured with (defaults in code; see docs/protocol.md).
 struct ServerOptions {
   geometry::PinholeCamera camera;  ///< calibration of the input
@@ -41,6 +43,10 @@ struct ServerOptions {
   /// each tracked object's name at the start of its cycle; whatever it throws is a fault in that
   /// object's cycle. Empty in production.
   std::function<void(const std::string& object)> object_hook;
+  /// Middleware adapters (ROS 2 on the wire): called on the tracking thread with each frame's
+  /// events, after the vision cycle; must not block (and what it throws is caught and counted as
+  /// a fault). Empty: none.
+  std::function<void(const FrameEvents& frame)> frame_observer;
 };
 
 /// \brief Counters of a running server (read from any thread).

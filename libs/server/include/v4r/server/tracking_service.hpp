@@ -195,6 +195,7 @@ class TrackingService {
   cv::Mat frame_, grey_;
   bool have_frame_ = false;
   std::int64_t next_frame_ = 0;
+  double first_capture_s_ = -1.0;  ///< live input: capture time of the first frame (steady clock, s)
   Clock::time_point due_;
   std::FILE* log_ = nullptr;
 
