@@ -21,6 +21,7 @@
 
 #include "../../libs/detection/tests/detection_scenes.hpp"
 #include "v4r/detection/detector.hpp"
+#include "v4r/detection/gradient_pyramid.hpp"
 #include "v4r/detection/edge_projection.hpp"
 #include "v4r/detection/symmetry.hpp"
 #include "v4r/io/frame_source.hpp"
@@ -60,11 +61,15 @@ int main(int argc, char** argv) {
   int images = 40, empty = 100;
   std::string models_arg = "box,ship,flange,section,mesh";
   std::string cache_dir = "/tmp/v4r_detection_eval_cache";
+  std::vector<std::string> sets;
+  std::string scenes_arg = "all";
   for (int i = 1; i + 1 < argc; i += 2) {
     if (!std::strcmp(argv[i], "--images")) images = std::atoi(argv[i + 1]);
     else if (!std::strcmp(argv[i], "--empty")) empty = std::atoi(argv[i + 1]);
     else if (!std::strcmp(argv[i], "--models")) models_arg = argv[i + 1];
     else if (!std::strcmp(argv[i], "--cache")) cache_dir = argv[i + 1];
+    else if (!std::strcmp(argv[i], "--set")) sets.emplace_back(argv[i + 1]);
+    else if (!std::strcmp(argv[i], "--scenes")) scenes_arg = argv[i + 1];
   }
   std::vector<std::string> models;
   std::stringstream ss(models_arg);
@@ -72,10 +77,19 @@ int main(int argc, char** argv) {
 
   const geometry::PinholeCamera cam = synth::default_camera();
   DetectorParams params;
+  ParamRegistry reg;
+  add_params(reg, params);
+  for (const std::string& kv : sets) {
+    const auto eq = kv.find('=');
+    if (auto r = reg.set(kv.substr(0, eq), eq == std::string::npos ? "" : kv.substr(eq + 1)); !r) {
+      fmt::print(stderr, "--set {}: {}\n", kv, r.error().to_string());
+      return 1;
+    }
+  }
   const std::array<testing::Scene, 6> scenes{testing::Scene::kPlain, testing::Scene::kTextured, testing::Scene::kClutter,
                                              testing::Scene::kNoise, testing::Scene::kBlur, testing::Scene::kOcclusion};
   std::vector<double> all_ms;
-  fmt::print("model,scene,images,success,success_rate,verified_wrong,median_ms,p95_ms\n");
+  fmt::print("model,scene,images,success,success_rate,verified_wrong,median_ms,p95_ms,gradient_ms,search_ms,refine_ms\n");
   std::vector<std::string> build_lines;
   std::vector<std::pair<std::string, std::pair<std::shared_ptr<const model::Model>, std::shared_ptr<const TemplateSet>>>> loaded;
   for (const std::string& name : models) {
@@ -115,14 +129,18 @@ int main(int argc, char** argv) {
     Detector det(m, set, cam, params);
     std::array<Hypothesis, 16> hyp;
     for (std::size_t si = 0; si < scenes.size(); ++si) {
+      if (scenes_arg != "all" && scenes_arg.find(testing::scene_name(scenes[si])) == std::string::npos) continue;
       std::mt19937 rng(1000u + static_cast<unsigned>(si) * 77u);
       int ok = 0, wrong = 0;
-      std::vector<double> ms;
+      std::vector<double> ms, grad_ms, search_ms, refine_ms;
       for (int k = 0; k < images; ++k) {
         const geometry::SE3 T = testing::random_pose(*m, params.views, cam, rng);
         const cv::Mat img = testing::render_scene(*m, T, cam, scenes[si], 100u + static_cast<unsigned>(k));
         const DetectionResult r = det.detect(io::as_colour_view(img), hyp);
         ms.push_back(r.total_ms);
+        grad_ms.push_back(r.gradient_ms);
+        search_ms.push_back(r.search_ms);
+        refine_ms.push_back(r.refine_ms);
         all_ms.push_back(r.total_ms);
         if (std::getenv("V4R_EVAL_DEBUG")) {
           geometry::SE3 Tt = T;
@@ -133,14 +151,68 @@ int main(int argc, char** argv) {
           fmt::print(stderr, "{} #{}: truth share {:.2f} score {:.2f} ({} samples), refined from truth {:.2f} err {:.3f} m {:.1f} deg; cands {}\n",
                      testing::scene_name(scenes[si]), k, vt.match_share, vt.score, vt.samples, vr.score, er.translation, er.rotation * 57.3,
                      r.coarse_candidates);
+          {
+            // Oracle: the template views nearest the truth and their scores at the true anchor.
+            const TemplateSet& tsx = *set;
+            const Eigen::Vector3d c_cam = T * tsx.centre;
+            const Eigen::Vector2d a = cam.project(c_cam);
+            const Eigen::Vector3d ray = c_cam.normalized();
+            const geometry::SE3 Tv = geometry::SE3(Eigen::Quaterniond::FromTwoVectors(ray, Eigen::Vector3d::UnitZ()), Eigen::Vector3d::Zero()) * T;
+            double best_d = 1e9;
+            std::uint32_t best_v = 0;
+            for (std::uint32_t vi = 0; vi < tsx.views.size(); ++vi) {
+              const double d = geometry::rotation_angle_between(tsx.views[vi].T_cam_obj, Tv) * 57.3 +
+                               100.0 * std::abs(std::log(tsx.views[vi].T_cam_obj.translation().z() / Tv.translation().z()));
+              if (d < best_d) { best_d = d; best_v = vi; }
+            }
+            const auto score_at = [&](const TemplateLevel& lvl, const OrientationLevel& L, const Template& t, double ax, double ay) {
+              int best = 0;
+              for (int dy = -2; dy <= 2; ++dy) for (int dx = -2; dx <= 2; ++dx) {
+                int sc = 0;
+                const int x0 = static_cast<int>(std::lround(ax)) + dx, y0 = static_cast<int>(std::lround(ay)) + dy;
+                for (std::uint32_t f = t.first; f < t.first + t.count; ++f) {
+                  const Feature& ft = lvl.features[f];
+                  const int x = x0 + ft.x, y = y0 + ft.y;
+                  if (x < 0 || y < 0 || x >= L.width || y >= L.height) continue;
+                  sc += L.response[ft.orientation][static_cast<std::size_t>(y) * L.width + x];
+                }
+                best = std::max(best, sc);
+              }
+              return best / (4.0 * t.count);
+            };
+            double cbest = 0; std::uint32_t cbv = 0;
+            for (std::uint32_t k2 = 0; k2 < tsx.coarse_views.size(); ++k2) {
+              const double d = geometry::rotation_angle_between(tsx.views[tsx.coarse_views[k2]].T_cam_obj, Tv) * 57.3 +
+                               100.0 * std::abs(std::log(tsx.views[tsx.coarse_views[k2]].T_cam_obj.translation().z() / Tv.translation().z()));
+              if (k2 == 0 || d < cbest) { cbest = d; cbv = k2; }
+            }
+            const double fs = score_at(tsx.fine, det.gradients().fine(), tsx.fine.templates[best_v], a.x() * 0.5 - 0.25, a.y() * 0.5 - 0.25);
+            const double cs = score_at(tsx.coarse, det.gradients().coarse(), tsx.coarse.templates[cbv], a.x() * 0.25 - 0.375, a.y() * 0.25 - 0.375);
+            fmt::print(stderr, "   oracle: nearest fine view dist {:.1f} score {:.2f}; nearest coarse dist {:.1f} score {:.2f}\n", best_d, fs, cbest, cs);
+          }
+          for (const double dz : {0.92, 1.08}) {
+            geometry::SE3 Tp = T;
+            Tp.set_translation(T.translation() * dz);
+            det.refine(Tp);
+            const PoseError ep = symmetric_pose_error(Tp, T, sym);
+            fmt::print(stderr, "   depth x{:.2f}: refined err {:.3f} m {:.1f} deg score {:.2f}\n", dz, ep.translation, ep.rotation * 57.3, det.verify(Tp).score);
+          }
+          for (const double ang : {0.1, -0.1}) {
+            geometry::SE3 Tp = T;
+            Tp = T * geometry::SE3::from_rvec(Eigen::Vector3d::Zero(), Eigen::Vector3d(ang, 0.5 * ang, 0));
+            det.refine(Tp);
+            const PoseError ep = symmetric_pose_error(Tp, T, sym);
+            fmt::print(stderr, "   rot {:.2f}: refined err {:.3f} m {:.1f} deg score {:.2f}\n", ang, ep.translation, ep.rotation * 57.3, det.verify(Tp).score);
+          }
           double best_wrong = 0.0, best_right = 0.0;
           (void)vr;
           for (int h = 0; h < r.hypotheses; ++h) {
             const PoseError e = symmetric_pose_error(hyp[h].T_cam_obj, T, sym);
             if (e.translation > 0.05 || e.rotation > 0.0873) best_wrong = std::max(best_wrong, hyp[h].verification.score);
             else best_right = std::max(best_right, hyp[h].verification.score);
-            if (std::getenv("V4R_EVAL_DEBUG")[0] == '2') fmt::print(stderr, "   h{} tpl {:.2f} share {:.2f} score {:.2f} err {:.3f} m {:.1f} deg\n", h, hyp[h].template_score,
-                       hyp[h].verification.match_share, hyp[h].verification.score, e.translation, e.rotation * 57.3);
+            const PoseError e0 = symmetric_pose_error(hyp[h].T_template, T, sym);
+            if (std::getenv("V4R_EVAL_DEBUG")[0] == '2') fmt::print(stderr, "   h{} tpl {:.2f} (err {:.3f} m {:.1f} deg) share {:.2f} score {:.2f} err {:.3f} m {:.1f} deg\n", h, hyp[h].template_score,
+                       e0.translation, e0.rotation * 57.3, hyp[h].verification.match_share, hyp[h].verification.score, e.translation, e.rotation * 57.3);
           }
           if (std::getenv("V4R_EVAL_DEBUG")[0] == '3') {
             cv::Mat dbg = img.clone();
@@ -175,8 +247,9 @@ int main(int argc, char** argv) {
           else ++wrong;
         }
       }
-      fmt::print("{},{},{},{},{:.3f},{},{:.1f},{:.1f}\n", name, testing::scene_name(scenes[si]), images, ok,
-                 static_cast<double>(ok) / images, wrong, percentile(ms, 0.5), percentile(ms, 0.95));
+      fmt::print("{},{},{},{},{:.3f},{},{:.1f},{:.1f},{:.1f},{:.1f},{:.1f}\n", name, testing::scene_name(scenes[si]), images, ok,
+                 static_cast<double>(ok) / images, wrong, percentile(ms, 0.5), percentile(ms, 0.95), percentile(grad_ms, 0.5),
+                 percentile(search_ms, 0.5), percentile(refine_ms, 0.5));
       std::fflush(stdout);
     }
     loaded.push_back({name, {m, set}});

@@ -22,7 +22,7 @@ Detector::Detector(std::shared_ptr<const model::Model> model, std::shared_ptr<co
   std::size_t max_children = 0;
   for (std::size_t k = 0; k + 1 < templates_->child_offsets.size(); ++k)
     max_children = std::max<std::size_t>(max_children, templates_->child_offsets[k + 1] - templates_->child_offsets[k]);
-  fine_.reserve(static_cast<std::size_t>(p_.search.coarse_candidates) * max_children + 1);
+  fine_.reserve(static_cast<std::size_t>(p_.search.fine_expand) * max_children + 1);
   picked_.reserve(static_cast<std::size_t>(p_.search.max_hypotheses));
   work_.reserve(static_cast<std::size_t>(p_.search.max_hypotheses));
 }
@@ -104,37 +104,54 @@ void Detector::coarse_search() {
   }
 }
 
-void Detector::fine_search() {
+int Detector::score_fine(std::uint32_t view, int cx, int cy, int& bx, int& by) const {
   const TemplateSet& ts = *templates_;
   const OrientationLevel& L = pyramid_.fine();
   const int w = L.width, h = L.height, r = p_.search.fine_window;
+  const Template& t = ts.fine.templates[view];
+  if (t.count < 8) return -1;
+  int best = -1;
+  for (int y = cy - r; y <= cy + 1 + r; ++y) {
+    if (y + t.y0 < 0 || y + t.y1 >= h) continue;
+    for (int x = cx - r; x <= cx + 1 + r; ++x) {
+      if (x + t.x0 < 0 || x + t.x1 >= w) continue;
+      int s = 0;
+      for (std::uint32_t f = t.first; f < t.first + t.count; ++f) {
+        const Feature& ft = ts.fine.features[f];
+        s += L.response[ft.orientation][static_cast<std::size_t>(y + ft.y) * w + (x + ft.x)];
+      }
+      if (s > best) {
+        best = s;
+        bx = x;
+        by = y;
+      }
+    }
+  }
+  return best < 0 ? -1 : static_cast<int>(1000.0 * best / (4.0 * t.count));
+}
+
+void Detector::fine_search() {
+  const TemplateSet& ts = *templates_;
   fine_.clear();
-  for (const Candidate& c : coarse_) {
+  // Probe: every coarse candidate's own view at the fine level ranks the candidates; only the
+  // best fine_expand are expanded to their children.
+  for (Candidate& c : coarse_) {
+    int bx = 2 * c.x, by = 2 * c.y;
+    const int s = score_fine(ts.coarse_views[c.index], 2 * c.x, 2 * c.y, bx, by);
+    c.score = s;
+  }
+  std::sort(coarse_.begin(), coarse_.end(), [](const Candidate& a, const Candidate& b) { return a.score > b.score; });
+  const std::size_t expand = std::min(coarse_.size(), static_cast<std::size_t>(p_.search.fine_expand));
+  for (std::size_t k = 0; k < expand; ++k) {
+    const Candidate& c = coarse_[k];
+    if (c.score < 0) break;
     const int cx = 2 * c.x, cy = 2 * c.y;  // 1/4 -> 1/2 resolution
     for (std::uint32_t ci = ts.child_offsets[c.index]; ci < ts.child_offsets[c.index + 1]; ++ci) {
       const std::uint32_t view = ts.children[ci];
-      const Template& t = ts.fine.templates[view];
-      if (t.count < 8) continue;
-      int best = -1, bx = 0, by = 0;
-      for (int y = cy - r; y <= cy + 1 + r; ++y) {
-        if (y + t.y0 < 0 || y + t.y1 >= h) continue;
-        for (int x = cx - r; x <= cx + 1 + r; ++x) {
-          if (x + t.x0 < 0 || x + t.x1 >= w) continue;
-          int s = 0;
-          for (std::uint32_t f = t.first; f < t.first + t.count; ++f) {
-            const Feature& ft = ts.fine.features[f];
-            s += L.response[ft.orientation][static_cast<std::size_t>(y + ft.y) * w + (x + ft.x)];
-          }
-          if (s > best) {
-            best = s;
-            bx = x;
-            by = y;
-          }
-        }
-      }
-      if (best < 0) continue;
-      fine_.push_back(Candidate{static_cast<int>(1000.0 * best / (4.0 * t.count)), view, static_cast<std::int16_t>(bx),
-                                static_cast<std::int16_t>(by)});
+      int bx = cx, by = cy;
+      const int s = score_fine(view, cx, cy, bx, by);
+      if (s < 0) continue;
+      fine_.push_back(Candidate{s, view, static_cast<std::int16_t>(bx), static_cast<std::int16_t>(by)});
     }
   }
   std::sort(fine_.begin(), fine_.end(), [](const Candidate& a, const Candidate& b) { return a.score > b.score; });
@@ -171,6 +188,7 @@ DetectionResult Detector::run(std::span<Hypothesis> out) {
     h.view = c.index;
     h.template_score = c.score / 1000.0;
     h.T_cam_obj = pose_at_pixel(*templates_, c.index, cam_, 2.0 * c.x + 0.5, 2.0 * c.y + 0.5);
+    h.T_template = h.T_cam_obj;
     aligner_.refine(pyramid_, h.T_cam_obj);
     h.verification = aligner_.verify(pyramid_, h.T_cam_obj);
     h.verified = h.verification.samples >= p_.verify.min_samples && h.verification.score >= p_.verify.accept_score;

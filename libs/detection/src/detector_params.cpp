@@ -19,6 +19,7 @@ void add_params(ParamRegistry& r, DetectorParams& p) {
   r.add("detect.templates.view_step", &t.view_step_deg, 2.0, 45.0, "deg", "elevation and azimuth step between template views");
   r.add("detect.templates.inplane_step", &t.inplane_step_deg, 2.0, 90.0, "deg", "step between in-plane rotations");
   r.add("detect.templates.scale_step", &t.scale_step, 1.02, 2.0, "", "distance ratio between template scales");
+  r.add("detect.templates.coarse_stride", &t.coarse_stride, 1, 4, "", "every n-th view along each grid axis has a coarse template (its children: the views within n/2 steps)");
   r.add("detect.templates.coarse_features", &t.coarse_features, 4, 63, "", "orientation features per coarse template (1/4 resolution)");
   r.add("detect.templates.fine_features", &t.fine_features, 8, 63, "", "orientation features per fine template (1/2 resolution)");
   r.add("detect.templates.crease_angle", &t.crease_angle_deg, 0.0, 90.0, "deg", "edges between faces closer than this in normal are not in templates");
@@ -27,13 +28,16 @@ void add_params(ParamRegistry& r, DetectorParams& p) {
   r.add("detect.search.coarse_spread", &s.coarse_spread, 0, 8, "px", "orientation spreading radius at 1/4 resolution");
   r.add("detect.search.fine_spread", &s.fine_spread, 0, 8, "px", "orientation spreading radius at 1/2 resolution");
   r.add("detect.search.coarse_min_score", &s.coarse_min_score, 0.0, 1.0, "", "share of the best coarse score a candidate needs");
-  r.add("detect.search.coarse_candidates", &s.coarse_candidates, 1, 1024, "", "coarse candidates taken to the fine level");
+  r.add("detect.search.coarse_candidates", &s.coarse_candidates, 1, 1024, "", "coarse candidates probed at 1/2 resolution with their own view");
+  r.add("detect.search.fine_expand", &s.fine_expand, 1, 1024, "", "best probed candidates whose neighbouring views are searched at 1/2 resolution");
   r.add("detect.search.fine_window", &s.fine_window, 0, 8, "px", "half window at 1/2 resolution around a coarse candidate");
   r.add("detect.search.max_hypotheses", &s.max_hypotheses, 1, 64, "", "hypotheses refined and verified per frame");
   auto& f = p.verify;
   r.add("detect.verify.sample_spacing", &f.sample_spacing_px, 1.0, 50.0, "px", "spacing of the projected model's edge samples");
   r.add("detect.verify.max_samples", &f.max_samples, 16, 4096, "", "edge samples per pose at most");
   r.add("detect.verify.refine_search", &f.refine_search_px, 1.0, 64.0, "px", "search range along the normal of the first refinement pass");
+  r.add("detect.verify.depth_scan_steps", &f.depth_scan_steps, 0, 20, "", "distances tried either side of a hypothesis before its refinement");
+  r.add("detect.verify.depth_scan_step", &f.depth_scan_step, 0.001, 0.5, "", "relative distance step of that scan");
   r.add("detect.verify.refine_iterations", &f.refine_iterations, 0, 100, "", "iterations of the 6-DoF edge alignment of a hypothesis");
   r.add("detect.verify.match_distance", &f.match_distance_px, 0.5, 10.0, "px", "a sample matches a gradient this close along its normal");
   r.add("detect.verify.match_angle", &f.match_angle_deg, 1.0, 90.0, "deg", "largest angle between a matching gradient and the edge normal");
@@ -68,6 +72,8 @@ Expected<void> validate(const DetectorParams& p) {
     return bad("detect.templates.coarse_features", "must lie within 4 .. 63");
   if (p.templates.fine_features < 8 || p.templates.fine_features > 63)
     return bad("detect.templates.fine_features", "must lie within 8 .. 63");
+  if (p.templates.coarse_stride < 1 || p.templates.coarse_stride > 4)
+    return bad("detect.templates.coarse_stride", "must lie within 1 .. 4");
   if (p.search.max_hypotheses < 1) return bad("detect.search.max_hypotheses", "must be at least 1");
   return {};
 }

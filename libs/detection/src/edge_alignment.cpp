@@ -45,8 +45,32 @@ double EdgeAligner::search(const GradientPyramid& g, const Eigen::Vector2d& px, 
   return best_t;
 }
 
+double EdgeAligner::loose_share(const GradientPyramid& g, const geometry::SE3& T, double range) {
+  const std::size_t n = projector_.sample(T, cam_, p_.sample_spacing_px, samples_);
+  if (n < 12) return 0.0;
+  int hit = 0;
+  for (std::size_t i = 0; i < n; ++i)
+    if (!std::isnan(search(g, samples_[i].px, samples_[i].normal, range))) ++hit;
+  return static_cast<double>(hit) / static_cast<double>(n);
+}
+
 int EdgeAligner::refine(const GradientPyramid& g, geometry::SE3& T) {
   int moved = 0;
+  if (p_.depth_scan_steps > 0) {
+    // Scale is what a template grid samples most coarsely: scan the distance first.
+    const geometry::SE3 T0 = T;
+    double best = loose_share(g, T0, 2.0 * p_.match_distance_px);
+    for (int k = -p_.depth_scan_steps; k <= p_.depth_scan_steps; ++k) {
+      if (k == 0) continue;
+      geometry::SE3 Tk = T0;
+      Tk.set_translation(T0.translation() * (1.0 + k * p_.depth_scan_step));
+      const double s = loose_share(g, Tk, 2.0 * p_.match_distance_px);
+      if (s > best) {
+        best = s;
+        T = Tk;
+      }
+    }
+  }
   const int iters = p_.refine_iterations;
   for (int it = 0; it < iters; ++it) {
     // Search range: full for the first third, then shrinking to 2 match distances.

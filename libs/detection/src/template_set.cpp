@@ -14,6 +14,13 @@ namespace {
 
 constexpr double kDeg = 3.14159265358979323846 / 180.0;
 
+/// Whether grid index k (of n) carries a coarse template with the given stride: every stride-th
+/// index, and the last one when the stride leaves it more than one step from a coarse index.
+bool on_coarse(int k, int n, int stride) {
+  if (k % stride == 0) return true;
+  return k == n - 1 && (n - 1) % stride > stride / 2;
+}
+
 /// `n` values evenly from lo to hi (n = 1: lo).
 double lin(double lo, double hi, int k, int n) { return n <= 1 ? lo : lo + (hi - lo) * k / (n - 1); }
 
@@ -124,7 +131,9 @@ Expected<TemplateSet> build_templates(const model::Model& model, const geometry:
           // Dense samples: 1 px apart at 1/2 resolution.
           const std::size_t n = projector.sample(tv.T_cam_obj, tcam, 2.0, samples, -1.0);
           add_template(set.fine, samples, n, tp.fine_features, scratch);
-          const bool is_coarse = ie % 2 == 0 && ia % 2 == 0 && ii % 2 == 0 && is % 2 == 0;
+          const int st = tp.coarse_stride;
+          const bool is_coarse = on_coarse(ie, set.n_elevation, st) && on_coarse(ia, set.n_azimuth, st) &&
+                                 on_coarse(ii, set.n_inplane, st) && on_coarse(is, set.n_distance, st);
           if (is_coarse) {
             set.coarse_views.push_back(static_cast<std::uint32_t>(set.views.size()));
             add_template(set.coarse, samples, n, tp.coarse_features, scratch);
@@ -136,21 +145,22 @@ Expected<TemplateSet> build_templates(const model::Model& model, const geometry:
       }
     }
   }
-  // Children of every coarse view: the fine views within one grid step along each axis.
+  // Children of every coarse view: the fine views within stride / 2 grid steps along each axis.
   set.child_offsets.push_back(0);
+  const int reach = std::max(1, tp.coarse_stride / 2);
   for (const std::uint32_t cv : set.coarse_views) {
     const TemplateView& c = set.views[cv];
-    for (int ds = -1; ds <= 1; ++ds)
-      for (int de = -1; de <= 1; ++de)
-        for (int da = -1; da <= 1; ++da)
-          for (int di = -1; di <= 1; ++di) {
+    for (int ds = -reach; ds <= reach; ++ds)
+      for (int de = -reach; de <= reach; ++de)
+        for (int da = -reach; da <= reach; ++da)
+          for (int di = -reach; di <= reach; ++di) {
             const int s = c.distance + ds, e = c.elevation + de, i = c.inplane + di;
             int a = c.azimuth + da;
             if (set.azimuth_wraps) a = (a + set.n_azimuth) % set.n_azimuth;
             if (s < 0 || s >= set.n_distance || e < 0 || e >= set.n_elevation || a < 0 || a >= set.n_azimuth || i < 0 ||
                 i >= set.n_inplane)
               continue;
-            if (set.azimuth_wraps && set.n_azimuth < 3 && da != 0) continue;
+            if (set.azimuth_wraps && set.n_azimuth <= 2 * reach && da != 0) continue;
             set.children.push_back(static_cast<std::uint32_t>(set.view_index(s, e, a, i)));
           }
     set.child_offsets.push_back(static_cast<std::uint32_t>(set.children.size()));

@@ -21,6 +21,7 @@ namespace v4r::detection {
 /// \brief A pose hypothesis of the detector, refined and verified against the image.
 struct Hypothesis {
   geometry::SE3 T_cam_obj;      ///< refined pose
+  geometry::SE3 T_template;     ///< the template's pose before refinement
   double template_score = 0.0;  ///< fine template match, share of the best possible (0..1)
   Verification verification;    ///< edge test of the refined pose
   bool verified = false;        ///< verification.score >= detect.verify.accept_score
@@ -90,6 +91,9 @@ class Detector {
   DetectionResult run(std::span<Hypothesis> out);
   void coarse_search();
   void fine_search();
+  /// Best fine score (x1000 of the best possible) of a view around 1/2-resolution pixel (cx, cy)
+  /// within detect.search.fine_window, and where; -1 when the template does not fit.
+  int score_fine(std::uint32_t view, int cx, int cy, int& bx, int& by) const;
 
   std::shared_ptr<const model::Model> model_;
   std::shared_ptr<const TemplateSet> templates_;

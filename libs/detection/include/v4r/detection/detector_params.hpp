@@ -21,9 +21,10 @@ struct ViewRange {
 
 /// \brief How the view templates are sampled (offline; part of the template cache key).
 struct TemplateParams {
-  double view_step_deg = 10.0;     ///< degrees between neighbouring views in elevation and azimuth
-  double inplane_step_deg = 10.0;  ///< degrees between in-plane rotations
-  double scale_step = 1.2;         ///< ratio of neighbouring template distances (> 1)
+  double view_step_deg = 7.0;      ///< degrees between neighbouring views in elevation and azimuth
+  double inplane_step_deg = 7.0;   ///< degrees between in-plane rotations
+  double scale_step = 1.12;        ///< ratio of neighbouring template distances (> 1)
+  int coarse_stride = 3;           ///< every coarse_stride-th view along each grid axis gets a coarse template
   int coarse_features = 20;        ///< features per coarse template (1/4 resolution)
   int fine_features = 48;          ///< features per fine template (1/2 resolution)
   double crease_angle_deg = 10.0;  ///< edges between faces closer than this in normal are no edge
@@ -35,9 +36,10 @@ struct SearchParams {
   int coarse_spread = 2;          ///< px at 1/4 resolution: orientations spread over (2r+1)^2
   int fine_spread = 2;            ///< px at 1/2 resolution
   double coarse_min_score = 0.5;  ///< share of the best possible coarse score a candidate needs
-  int coarse_candidates = 48;     ///< coarse candidates taken to the fine level
+  int coarse_candidates = 300;    ///< coarse candidates probed at the fine level (their own view)
+  int fine_expand = 64;           ///< best probed candidates whose neighbouring views are searched
   int fine_window = 2;            ///< px at 1/2 resolution searched around a coarse candidate
-  int max_hypotheses = 10;        ///< hypotheses refined and verified per frame
+  int max_hypotheses = 16;        ///< hypotheses refined and verified per frame
 };
 
 /// \brief Local refinement and verification of a hypothesis against the image's edges.
@@ -45,13 +47,15 @@ struct VerifyParams {
   double sample_spacing_px = 5.0;   ///< px between edge samples of the projected model
   int max_samples = 400;            ///< at most this many samples (spacing grows on large views)
   double refine_search_px = 12.0;   ///< px searched along the normal in the first refinement pass
+  int depth_scan_steps = 3;         ///< distances tried either side of a hypothesis before refining
+  double depth_scan_step = 0.03;    ///< relative distance step of that scan
   int refine_iterations = 12;       ///< Gauss-Newton iterations of the 6-DoF edge alignment
   double match_distance_px = 1.5;   ///< px: a sample matches a gradient this close along its normal
   double match_angle_deg = 15.0;    ///< degrees: ... whose orientation is this close to the edge normal
   double min_gradient = 8.0;        ///< grey levels per pixel of a matching gradient (a step of 2x this)
   int min_samples = 30;             ///< fewer visible samples: a pose cannot be verified
   int min_run = 4;                  ///< consecutive matched samples of one polarity along an edge that count
-  double accept_score = 0.65;       ///< share of samples matched for a verified pose
+  double accept_score = 0.75;       ///< share of samples matched for a verified pose
 };
 
 /// \brief All parameters of the detector.

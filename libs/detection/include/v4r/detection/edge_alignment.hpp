@@ -33,13 +33,17 @@ class EdgeAligner {
  public:
   EdgeAligner(const model::Model& model, const geometry::PinholeCamera& cam, const DetectorParams& p);
 
-  /// Refines `T_cam_obj` in place over p.verify.refine_iterations iterations; returns the number
-  /// of iterations that moved the pose (0: too few edges matched, pose unchanged).
+  /// Refines `T_cam_obj` in place: first the distance along the line of sight is scanned
+  /// (p.verify.depth_scan_steps steps of depth_scan_step either side, kept where most edge
+  /// samples find a gradient), then p.verify.refine_iterations Gauss-Newton iterations; returns
+  /// the number of iterations that moved the pose (0: too few edges matched).
   int refine(const GradientPyramid& g, geometry::SE3& T_cam_obj);
   /// The edge test of a pose.
   Verification verify(const GradientPyramid& g, const geometry::SE3& T_cam_obj);
 
  private:
+  /// Share of edge samples with an aligned gradient within `range` px (no runs, loose angle).
+  double loose_share(const GradientPyramid& g, const geometry::SE3& T, double range);
   /// Signed offset (px) along `n` of the best gradient within `range` px of `px`, or NaN.
   double search(const GradientPyramid& g, const Eigen::Vector2d& px, const Eigen::Vector2d& n, double range) const;
 
