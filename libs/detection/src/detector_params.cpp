@@ -5,6 +5,14 @@
 
 namespace v4r::detection {
 
+ViewRange resolve_view_range(const ViewRange& v, double radius, double focal_px) {
+  ViewRange out = v;
+  if (out.distance_min_m <= 0.0) out.distance_min_m = focal_px * 2.0 * radius / 400.0;
+  if (out.distance_max_m <= 0.0) out.distance_max_m = focal_px * 2.0 * radius / 150.0;
+  if (out.distance_max_m < out.distance_min_m) out.distance_max_m = out.distance_min_m;
+  return out;
+}
+
 void add_params(ParamRegistry& r, DetectorParams& p) {
   auto& v = p.views;
   r.add("detect.views.elevation_min", &v.elevation_min_deg, -89.0, 89.0, "deg", "lowest camera elevation above the object's x-y plane");
@@ -13,8 +21,8 @@ void add_params(ParamRegistry& r, DetectorParams& p) {
   r.add("detect.views.azimuth_max", &v.azimuth_max_deg, -360.0, 720.0, "deg", "last camera azimuth (a span of 360: all around)");
   r.add("detect.views.inplane_min", &v.inplane_min_deg, -180.0, 180.0, "deg", "smallest turn of the image about the optical axis");
   r.add("detect.views.inplane_max", &v.inplane_max_deg, -180.0, 180.0, "deg", "largest turn of the image about the optical axis");
-  r.add("detect.views.distance_min", &v.distance_min_m, 0.01, 100.0, "m", "nearest camera distance to the object's centre");
-  r.add("detect.views.distance_max", &v.distance_max_m, 0.01, 100.0, "m", "farthest camera distance to the object's centre");
+  r.add("detect.views.distance_min", &v.distance_min_m, 0.0, 100.0, "m", "nearest camera distance to the object's centre (0: where the object spans 400 px)");
+  r.add("detect.views.distance_max", &v.distance_max_m, 0.0, 100.0, "m", "farthest camera distance to the object's centre (0: where it spans 150 px)");
   auto& t = p.templates;
   r.add("detect.templates.view_step", &t.view_step_deg, 2.0, 45.0, "deg", "elevation and azimuth step between template views");
   r.add("detect.templates.inplane_step", &t.inplane_step_deg, 2.0, 90.0, "deg", "step between in-plane rotations");
@@ -63,8 +71,10 @@ Expected<void> validate(const DetectorParams& p) {
     return bad("detect.views.azimuth_min", fmt::format("{} is above azimuth_max {}", v.azimuth_min_deg, v.azimuth_max_deg));
   if (v.inplane_min_deg > v.inplane_max_deg)
     return bad("detect.views.inplane_min", fmt::format("{} is above inplane_max {}", v.inplane_min_deg, v.inplane_max_deg));
-  if (!(v.distance_min_m > 0.0) || v.distance_min_m > v.distance_max_m)
-    return bad("detect.views.distance_min", fmt::format("must be positive and at most distance_max {}", v.distance_max_m));
+  if (v.distance_min_m < 0.0 || v.distance_max_m < 0.0)
+    return bad("detect.views.distance_min", "distances must be positive (or 0: automatic)");
+  if (v.distance_min_m > 0.0 && v.distance_max_m > 0.0 && v.distance_min_m > v.distance_max_m)
+    return bad("detect.views.distance_min", fmt::format("{} is above distance_max {}", v.distance_min_m, v.distance_max_m));
   if (!(p.templates.scale_step > 1.0)) return bad("detect.templates.scale_step", "must be above 1");
   if (!(p.templates.view_step_deg > 0.0)) return bad("detect.templates.view_step", "must be positive");
   if (!(p.templates.inplane_step_deg > 0.0)) return bad("detect.templates.inplane_step", "must be positive");

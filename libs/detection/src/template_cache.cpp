@@ -180,7 +180,7 @@ std::uint64_t template_key(const model::Model& m, const geometry::PinholeCamera&
   }
   f.add(cam.fx);
   f.add(cam.fy);
-  const ViewRange& v = p.views;
+  const ViewRange v = resolve_view_range(p.views, model_extent(m).radius, cam.focal());
   for (const double x : {v.elevation_min_deg, v.elevation_max_deg, v.azimuth_min_deg, v.azimuth_max_deg, v.inplane_min_deg,
                          v.inplane_max_deg, v.distance_min_m, v.distance_max_m})
     f.add(x);

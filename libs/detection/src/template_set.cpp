@@ -61,27 +61,41 @@ void add_template(TemplateLevel& level, const std::vector<EdgeSample>& samples, 
 
 }  // namespace
 
+ModelExtent model_extent(const model::Model& model) {
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e300), hi = Eigen::Vector3d::Constant(-1e300);
+  std::vector<Eigen::Vector3d> pts;
+  for (const auto& j : model.junctions()) pts.push_back(j.p);
+  for (const auto& c : model.cylinders())
+    for (const Eigen::Vector3d& q : {c.p1, c.p2})
+      for (int k = 0; k < 8; ++k)
+        pts.push_back(q + c.radius * Eigen::Vector3d(k & 1 ? 1 : -1, k & 2 ? 1 : -1, k & 4 ? 1 : -1));
+  for (const auto& a : model.arcs())
+    for (int k = 0; k < 8; ++k)
+      pts.push_back(a.center + a.radius * Eigen::Vector3d(k & 1 ? 1 : -1, k & 2 ? 1 : -1, k & 4 ? 1 : -1));
+  ModelExtent e;
+  if (pts.empty()) return e;
+  for (const auto& q : pts) {
+    lo = lo.cwiseMin(q);
+    hi = hi.cwiseMax(q);
+  }
+  e.centre = 0.5 * (lo + hi);
+  // Junctions give the radius; rims count by their true extent (radius from the centre line).
+  for (const auto& j : model.junctions()) e.radius = std::max(e.radius, (j.p - e.centre).norm());
+  for (const auto& a : model.arcs()) e.radius = std::max(e.radius, (a.center - e.centre).norm() + a.radius);
+  return e;
+}
+
 Expected<TemplateSet> build_templates(const model::Model& model, const geometry::PinholeCamera& cam,
                                       const DetectorParams& p, const BuildProgress& progress) {
   if (auto ok = validate(p); !ok) return ok.error();
   if (!(cam.fx > 0.0) || !(cam.fy > 0.0)) return make_error("camera: focal lengths must be positive");
   if (model.junctions().empty() || (model.lines().empty() && model.arcs().empty()))
     return make_error("model has no edges to build templates from");
-  const ViewRange& v = p.views;
+  const ModelExtent ext = model_extent(model);
+  const ViewRange v = resolve_view_range(p.views, ext.radius, cam.focal());
   const TemplateParams& tp = p.templates;
   TemplateSet set;
-  Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e300), hi = Eigen::Vector3d::Constant(-1e300);
-  for (const auto& j : model.junctions()) {
-    lo = lo.cwiseMin(j.p);
-    hi = hi.cwiseMax(j.p);
-  }
-  for (const auto& c : model.cylinders()) {
-    for (const Eigen::Vector3d& q : {c.p1, c.p2}) {
-      lo = lo.cwiseMin(q - Eigen::Vector3d::Constant(c.radius));
-      hi = hi.cwiseMax(q + Eigen::Vector3d::Constant(c.radius));
-    }
-  }
-  set.centre = 0.5 * (lo + hi);
+  set.centre = ext.centre;
   set.fx = cam.fx;
   set.fy = cam.fy;
   const double el_span = v.elevation_max_deg - v.elevation_min_deg;

@@ -13,6 +13,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "v4r/detection/detector_params.hpp"
+#include "v4r/detection/template_set.hpp"
 #include "v4r/geometry/look_at.hpp"
 #include "v4r/synth/conditions.hpp"
 #include "v4r/synth/renderer.hpp"
@@ -33,17 +34,7 @@ inline const char* scene_name(Scene s) {
   return "?";
 }
 
-/// Centre of a model's bounding box (object frame).
-inline Eigen::Vector3d bbox_centre(const model::Model& m) {
-  Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e300), hi = -lo;
-  for (const auto& j : m.junctions()) {
-    lo = lo.cwiseMin(j.p);
-    hi = hi.cwiseMax(j.p);
-  }
-  return 0.5 * (lo + hi);
-}
-
-/// A random pose in the view range (shrunk by `inset` of each span so that the truth is not on
+/// A random pose in the view range `v` (automatic distances resolved for `m` and `cam`; shrunk by `inset` of each span so that the truth is not on
 /// the border of the sampled range) with the model's centre at a random pixel that keeps the
 /// model's bounding sphere `margin_px` inside the image.
 inline geometry::SE3 random_pose(const model::Model& m, const ViewRange& v, const geometry::PinholeCamera& cam,
@@ -56,10 +47,11 @@ inline geometry::SE3 random_pose(const model::Model& m, const ViewRange& v, cons
   const double el = uni(v.elevation_min_deg, v.elevation_max_deg) * kDeg;
   const double az = uni(v.azimuth_min_deg, v.azimuth_max_deg) * kDeg;
   const double ip = uni(v.inplane_min_deg, v.inplane_max_deg) * kDeg;
-  const double dist = std::exp(uni(std::log(v.distance_min_m), std::log(v.distance_max_m)));
-  const Eigen::Vector3d c = bbox_centre(m);
-  double r = 0.0;
-  for (const auto& j : m.junctions()) r = std::max(r, (j.p - c).norm());
+  const ModelExtent ext = model_extent(m);
+  const ViewRange rv = resolve_view_range(v, ext.radius, cam.focal());
+  const double dist = std::exp(uni(std::log(rv.distance_min_m), std::log(rv.distance_max_m)));
+  const Eigen::Vector3d c = ext.centre;
+  const double r = ext.radius;
   const geometry::SE3 T0 = geometry::SE3::from_rvec(Eigen::Vector3d::Zero(), Eigen::Vector3d(0, 0, ip)) *
                            geometry::look_at(dist, az, el, c);
   const double rpx = cam.focal() * r / dist + margin_px;

@@ -15,8 +15,10 @@ struct ViewRange {
   double azimuth_max_deg = 360.0;   ///< degrees
   double inplane_min_deg = -30.0;   ///< degrees: turn of the image about the optical axis
   double inplane_max_deg = 30.0;    ///< degrees
-  double distance_min_m = 0.4;      ///< metres, camera to the bounding box centre
-  double distance_max_m = 1.0;      ///< metres
+  /// Metres, camera to the bounding box centre; 0: where the model's bounding sphere spans
+  /// 400 px across (see resolve_view_range).
+  double distance_min_m = 0.0;
+  double distance_max_m = 0.0;      ///< metres; 0: where the bounding sphere spans 150 px
 };
 
 /// \brief How the view templates are sampled (offline; part of the template cache key).
@@ -65,6 +67,10 @@ struct DetectorParams {
   SearchParams search;
   VerifyParams verify;
 };
+
+/// The view range with automatic distances filled in for a model (`radius`: of its bounding
+/// sphere about the bounding box centre, metres) and a camera's focal length `focal_px`.
+ViewRange resolve_view_range(const ViewRange& v, double radius, double focal_px);
 
 /// Registers every detector parameter under `detect.*` (units and ranges) in `r`; `p` must
 /// outlive the registry.

@@ -65,6 +65,14 @@ struct TemplateSet {
   }
 };
 
+/// \brief Centre of a model's bounding box (object frame, metres; cylinders and arcs by their
+/// boxes) and the radius of the sphere about it that holds every junction and arc.
+struct ModelExtent {
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  double radius = 0.0;
+};
+ModelExtent model_extent(const model::Model& model);
+
 /// Called during building with (views done, views in all).
 using BuildProgress = std::function<void(std::size_t, std::size_t)>;
 
