@@ -86,8 +86,8 @@ int main(int argc, char** argv) {
       return 1;
     }
   }
-  const std::array<testing::Scene, 6> scenes{testing::Scene::kPlain, testing::Scene::kTextured, testing::Scene::kClutter,
-                                             testing::Scene::kNoise, testing::Scene::kBlur, testing::Scene::kOcclusion};
+  const std::array<scenes::Scene, 6> scenes{scenes::Scene::kPlain, scenes::Scene::kTextured, scenes::Scene::kClutter,
+                                             scenes::Scene::kNoise, scenes::Scene::kBlur, scenes::Scene::kOcclusion};
   std::vector<double> all_ms;
   fmt::print("model,scene,images,success,success_rate,verified_wrong,median_ms,p95_ms,gradient_ms,search_ms,refine_ms\n");
   std::vector<std::string> build_lines;
@@ -129,13 +129,13 @@ int main(int argc, char** argv) {
     Detector det(m, set, cam, params);
     std::array<Hypothesis, 16> hyp;
     for (std::size_t si = 0; si < scenes.size(); ++si) {
-      if (scenes_arg != "all" && scenes_arg.find(testing::scene_name(scenes[si])) == std::string::npos) continue;
+      if (scenes_arg != "all" && scenes_arg.find(scenes::scene_name(scenes[si])) == std::string::npos) continue;
       std::mt19937 rng(1000u + static_cast<unsigned>(si) * 77u);
       int ok = 0, wrong = 0;
       std::vector<double> ms, grad_ms, search_ms, refine_ms;
       for (int k = 0; k < images; ++k) {
-        const geometry::SE3 T = testing::random_pose(*m, params.views, cam, rng);
-        const cv::Mat img = testing::render_scene(*m, T, cam, scenes[si], 100u + static_cast<unsigned>(k));
+        const geometry::SE3 T = scenes::random_pose(*m, params.views, cam, rng);
+        const cv::Mat img = scenes::render_scene(*m, T, cam, scenes[si], 100u + static_cast<unsigned>(k));
         const DetectionResult r = det.detect(io::as_colour_view(img), hyp);
         ms.push_back(r.total_ms);
         grad_ms.push_back(r.gradient_ms);
@@ -149,7 +149,7 @@ int main(int argc, char** argv) {
           const Verification vr = det.verify(Tt);
           const PoseError er = symmetric_pose_error(Tt, T, sym);
           fmt::print(stderr, "{} #{}: truth share {:.2f} score {:.2f} ({} samples), refined from truth {:.2f} err {:.3f} m {:.1f} deg; cands {}\n",
-                     testing::scene_name(scenes[si]), k, vt.match_share, vt.score, vt.samples, vr.score, er.translation, er.rotation * 57.3,
+                     scenes::scene_name(scenes[si]), k, vt.match_share, vt.score, vt.samples, vr.score, er.translation, er.rotation * 57.3,
                      r.coarse_candidates);
           {
             // Oracle: the template views nearest the truth and their scores at the true anchor.
@@ -236,7 +236,7 @@ int main(int argc, char** argv) {
               }
               cv::circle(dbg, cv::Point(x, y), 2, mag > params.verify.min_gradient ? cv::Scalar(0, 255, 0) : cv::Scalar(0, 0, 255), 1);
             }
-            cv::imwrite(fmt::format("/tmp/det_dbg_{}_{}.png", testing::scene_name(scenes[si]), k), dbg);
+            cv::imwrite(fmt::format("/tmp/det_dbg_{}_{}.png", scenes::scene_name(scenes[si]), k), dbg);
           }
           fmt::print(stderr, "   best right {:.2f} best wrong {:.2f} {}\n", best_right, best_wrong,
                      best_right > best_wrong ? "" : (best_right == 0.0 ? "NOT FOUND" : "OUTRANKED"));
@@ -247,7 +247,7 @@ int main(int argc, char** argv) {
           else ++wrong;
         }
       }
-      fmt::print("{},{},{},{},{:.3f},{},{:.1f},{:.1f},{:.1f},{:.1f},{:.1f}\n", name, testing::scene_name(scenes[si]), images, ok,
+      fmt::print("{},{},{},{},{:.3f},{},{:.1f},{:.1f},{:.1f},{:.1f},{:.1f}\n", name, scenes::scene_name(scenes[si]), images, ok,
                  static_cast<double>(ok) / images, wrong, percentile(ms, 0.5), percentile(ms, 0.95), percentile(grad_ms, 0.5),
                  percentile(search_ms, 0.5), percentile(refine_ms, 0.5));
       std::fflush(stdout);
@@ -265,7 +265,7 @@ int main(int argc, char** argv) {
     std::vector<double> best;
     for (int k = 0; k < empty; ++k) {
       const int kind = k % 3;
-      const cv::Mat img = testing::empty_scene(cam, kind, photos[static_cast<std::size_t>(kind)], rng);
+      const cv::Mat img = scenes::empty_scene(cam, kind, photos[static_cast<std::size_t>(kind)], rng);
       if (img.empty()) continue;
       const DetectionResult r = det.detect(io::as_colour_view(img), hyp);
       ++n;

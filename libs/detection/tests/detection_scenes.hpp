@@ -18,7 +18,7 @@
 #include "v4r/synth/conditions.hpp"
 #include "v4r/synth/renderer.hpp"
 
-namespace v4r::detection::testing {
+namespace v4r::detection::scenes {
 
 /// Scene conditions of the detection tests.
 enum class Scene { kPlain, kTextured, kClutter, kNoise, kBlur, kOcclusion };
@@ -115,4 +115,4 @@ inline cv::Mat empty_scene(const geometry::PinholeCamera& cam, int kind, const s
   return scaled(cv::Rect(x, y, cam.width, cam.height)).clone();
 }
 
-}  // namespace v4r::detection::testing
+}  // namespace v4r::detection::scenes
