@@ -141,7 +141,17 @@ Verification EdgeAligner::verify(const GradientPyramid& g, const geometry::SE3& 
       const double m2 = gx * gx + gy * gy;
       if (m2 < min_sobel2_) continue;
       const double dot = gx * s.normal.x() + gy * s.normal.y();
-      if (dot * dot >= cos_match_ * cos_match_ * m2 && std::abs(dot) > best) {
+      if (dot * dot < cos_match_ * cos_match_ * m2 || std::abs(dot) <= best) continue;
+      // An edge, not a ramp: the gradient along the normal peaks here (blur and shading give wide
+      // bands of aligned gradient that any nearby pose would match).
+      bool peak = true;
+      for (const int d : {-1, 1}) {
+        const int xn = static_cast<int>(std::lround(s.px.x() + (t + d) * s.normal.x()));
+        const int yn = static_cast<int>(std::lround(s.px.y() + (t + d) * s.normal.y()));
+        if (xn < 1 || yn < 1 || xn >= w - 1 || yn >= h - 1) continue;
+        if (std::abs(g.gx(xn, yn) * s.normal.x() + g.gy(xn, yn) * s.normal.y()) > std::abs(dot)) peak = false;
+      }
+      if (peak) {
         best = std::abs(dot);
         sign = dot > 0 ? 1 : -1;
       }
