@@ -198,9 +198,15 @@ DetectionResult Detector::run(std::span<Hypothesis> out) {
     if (a.verified != b.verified) return a.verified;
     return a.verification.score > b.verification.score;
   });
-  const std::size_t n = std::min(out.size(), work_.size());
-  for (std::size_t i = 0; i < n; ++i) {
-    out[i] = work_[i];
+  // Hypotheses that converged to the same pose are given once (the best ranked).
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < work_.size() && n < out.size(); ++i) {
+    bool dup = false;
+    for (std::size_t j = 0; j < n && !dup; ++j)
+      dup = (out[j].T_cam_obj.translation() - work_[i].T_cam_obj.translation()).norm() < 0.01 &&
+            geometry::rotation_angle_between(out[j].T_cam_obj, work_[i].T_cam_obj) < 0.035;
+    if (dup) continue;
+    out[n++] = work_[i];
     r.verified += work_[i].verified ? 1 : 0;
   }
   r.hypotheses = static_cast<int>(n);
