@@ -121,10 +121,13 @@ Verification EdgeAligner::verify(const GradientPyramid& g, const geometry::SE3& 
   const int w = g.width(), h = g.height();
   const int steps = static_cast<int>(std::ceil(p_.match_distance_px * 2.0));
   // A run: consecutive matches along one edge piece with one polarity (the same side brighter).
-  int run = 0, run_sign = 0;
-  std::uint32_t run_piece = 0;
-  const auto close_run = [&] {
-    if (run >= p_.min_run) v.in_runs += run;
+  // A piece shorter than min_run samples counts when all of it matches with one polarity.
+  int run = 0, run_sign = 0, piece_samples = 0;
+  bool piece_broken = false;
+  std::uint32_t run_piece = n > 0 ? samples_[0].piece : 0;
+  const auto close_run = [&](bool piece_end) {
+    if (run >= p_.min_run || (piece_end && !piece_broken && run == piece_samples && run > 0)) v.in_runs += run;
+    if (!piece_end && run > 0) piece_broken = true;
     run = 0;
   };
   for (std::size_t i = 0; i < n; ++i) {
@@ -157,15 +160,23 @@ Verification EdgeAligner::verify(const GradientPyramid& g, const geometry::SE3& 
       }
     }
     const bool ok = sign != 0;
-    if (s.piece != run_piece || !ok || (run > 0 && sign != run_sign)) close_run();
+    if (s.piece != run_piece) {
+      close_run(true);
+      piece_samples = 0;
+      piece_broken = false;
+    } else if (!ok || (run > 0 && sign != run_sign)) {
+      close_run(false);
+      if (!ok) piece_broken = true;
+    }
     run_piece = s.piece;
+    ++piece_samples;
     if (ok) {
       ++run;
       run_sign = sign;
     }
     v.matched += ok ? 1 : 0;
   }
-  close_run();
+  close_run(true);
   v.match_share = static_cast<double>(v.matched) / v.samples;
   v.score = static_cast<double>(v.in_runs) / v.samples;
   return v;
