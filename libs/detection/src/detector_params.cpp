@@ -51,6 +51,9 @@ void add_params(ParamRegistry& r, DetectorParams& p) {
   r.add("detect.verify.match_angle", &f.match_angle_deg, 1.0, 90.0, "deg", "largest angle between a matching gradient and the edge normal");
   r.add("detect.verify.min_gradient", &f.min_gradient, 0.0, 255.0, "grey/px", "weakest gradient that matches a sample");
   r.add("detect.verify.min_samples", &f.min_samples, 3, 4096, "", "fewer visible edge samples: the pose is not verified");
+  r.add("detect.verify.peak_tolerance", &f.peak_tolerance, 1.0, 10.0, "",
+        "a matching gradient is an edge: its neighbours 1 px along the normal have at most this times its gradient");
+  r.add("detect.verify.short_pieces", &f.short_pieces, "an edge piece shorter than min_run samples counts when all of it matches");
   r.add("detect.verify.min_run", &f.min_run, 1, 64, "", "matched samples count only in runs of this many consecutive matches along an edge");
   r.add("detect.verify.accept_score", &f.accept_score, 0.0, 1.0, "", "share of matched edge samples of a verified pose");
 }

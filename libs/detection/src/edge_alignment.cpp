@@ -126,7 +126,7 @@ Verification EdgeAligner::verify(const GradientPyramid& g, const geometry::SE3& 
   bool piece_broken = false;
   std::uint32_t run_piece = n > 0 ? samples_[0].piece : 0;
   const auto close_run = [&](bool piece_end) {
-    if (run >= p_.min_run || (piece_end && !piece_broken && run == piece_samples && run > 0)) v.in_runs += run;
+    if (run >= p_.min_run || (p_.short_pieces && piece_end && !piece_broken && run == piece_samples && run > 0)) v.in_runs += run;
     if (!piece_end && run > 0) piece_broken = true;
     run = 0;
   };
@@ -145,19 +145,20 @@ Verification EdgeAligner::verify(const GradientPyramid& g, const geometry::SE3& 
       if (m2 < min_sobel2_) continue;
       const double dot = gx * s.normal.x() + gy * s.normal.y();
       if (dot * dot < cos_match_ * cos_match_ * m2 || std::abs(dot) <= best) continue;
-      // An edge, not a ramp: the gradient along the normal peaks here (blur and shading give wide
-      // bands of aligned gradient that any nearby pose would match).
+      // An edge rather than the slope of a ramp: the gradient along the normal does not grow by
+      // more than detect.verify.peak_tolerance one pixel further either way (shading and texture
+      // ramps would otherwise match any nearby pose).
       bool peak = true;
       for (const int d : {-1, 1}) {
         const int xn = static_cast<int>(std::lround(s.px.x() + (t + d) * s.normal.x()));
         const int yn = static_cast<int>(std::lround(s.px.y() + (t + d) * s.normal.y()));
         if (xn < 1 || yn < 1 || xn >= w - 1 || yn >= h - 1) continue;
-        if (std::abs(g.gx(xn, yn) * s.normal.x() + g.gy(xn, yn) * s.normal.y()) > std::abs(dot)) peak = false;
+        const double next = std::abs(g.gx(xn, yn) * s.normal.x() + g.gy(xn, yn) * s.normal.y());
+        if (next > p_.peak_tolerance * std::abs(dot)) peak = false;
       }
-      if (peak) {
-        best = std::abs(dot);
-        sign = dot > 0 ? 1 : -1;
-      }
+      if (!peak) continue;
+      best = std::abs(dot);
+      sign = dot > 0 ? 1 : -1;
     }
     const bool ok = sign != 0;
     if (s.piece != run_piece) {

@@ -56,6 +56,8 @@ struct VerifyParams {
   double match_angle_deg = 15.0;    ///< degrees: ... whose orientation is this close to the edge normal
   double min_gradient = 8.0;        ///< grey levels per pixel of a matching gradient (a step of 2x this)
   int min_samples = 30;             ///< fewer visible samples: a pose cannot be verified
+  double peak_tolerance = 1.0;      ///< a match's neighbours along the normal may have at most this times its gradient
+  bool short_pieces = true;         ///< an edge piece shorter than min_run counts when all of it matches
   int min_run = 4;                  ///< consecutive matched samples of one polarity along an edge that count
   double accept_score = 0.75;       ///< share of samples matched for a verified pose
 };
