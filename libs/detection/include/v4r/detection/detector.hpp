@@ -61,6 +61,8 @@ struct DetectionResult {
 /// per thread; the TemplateSet may be shared).
 class Detector {
  public:
+  /// `cam` must give the image size (width, height) of the frames; `templates` must be built for
+  /// its focal lengths (build_templates or load_or_build with the same camera and `p`).
   Detector(std::shared_ptr<const model::Model> model, std::shared_ptr<const TemplateSet> templates,
            const geometry::PinholeCamera& cam, const DetectorParams& p);
 
