@@ -4,7 +4,8 @@
 // the truth (modulo the model's symmetries); false accepts on object-free images (clutter
 // backgrounds, ViSP's Klimt and Solvay photos); median and p95 detection time.
 //
-//   build/bin/v4r_detection_eval [--images N] [--empty N] [--models box,ship,...] [--cache DIR]
+//   build/bin/v4r_detection_eval [--images N] [--empty N] [--models box,ship,...] [--scenes plain,clutter,...]
+//                                [--set detect.x=y ...]   (V4R_EVAL_DEBUG=1|2|3: per-image diagnosis on stderr)
 //   (one core: taskset -c 1 build/bin/v4r_detection_eval)
 #include <algorithm>
 #include <array>
@@ -60,14 +61,12 @@ std::shared_ptr<const model::Model> builtin(const std::string& name) {
 int main(int argc, char** argv) {
   int images = 40, empty = 100;
   std::string models_arg = "box,ship,flange,section,mesh";
-  std::string cache_dir = "/tmp/v4r_detection_eval_cache";
   std::vector<std::string> sets;
   std::string scenes_arg = "all";
   for (int i = 1; i + 1 < argc; i += 2) {
     if (!std::strcmp(argv[i], "--images")) images = std::atoi(argv[i + 1]);
     else if (!std::strcmp(argv[i], "--empty")) empty = std::atoi(argv[i + 1]);
     else if (!std::strcmp(argv[i], "--models")) models_arg = argv[i + 1];
-    else if (!std::strcmp(argv[i], "--cache")) cache_dir = argv[i + 1];
     else if (!std::strcmp(argv[i], "--set")) sets.emplace_back(argv[i + 1]);
     else if (!std::strcmp(argv[i], "--scenes")) scenes_arg = argv[i + 1];
   }
@@ -278,6 +277,5 @@ int main(int argc, char** argv) {
   }
   for (const auto& l : build_lines) fmt::print("templates {}\n", l);
   fmt::print("detection time over all images: median {:.1f} ms, p95 {:.1f} ms\n", percentile(all_ms, 0.5), percentile(all_ms, 0.95));
-  (void)cache_dir;
   return 0;
 }
