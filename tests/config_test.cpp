@@ -9,6 +9,7 @@
 
 #include <gtest/gtest.h>
 
+#include "v4r/detection/detector_params.hpp"
 #include "v4r/pipeline/params.hpp"
 
 namespace {
@@ -54,7 +55,9 @@ TEST(Config, PrintsEveryParameterOfTheRegistryWithItsRange) {
     printed[name + key] = rest;
   }
   v4r::pipeline::CycleParams params;
-  const v4r::ParamRegistry reg = v4r::pipeline::make_registry(params);
+  v4r::ParamRegistry reg = v4r::pipeline::make_registry(params);
+  v4r::detection::DetectorParams detect_params;  // `v4r config` prints the detector's too
+  v4r::detection::add_params(reg, detect_params);
   std::set<std::string> names;
   for (const v4r::ParamRegistry::Entry& e : reg.entries()) {
     names.insert(e.name);

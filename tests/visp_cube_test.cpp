@@ -28,38 +28,12 @@
 #include "v4r/io/pose_io.hpp"
 #include "v4r/model/cao_reader.hpp"
 #include "v4r/pipeline/tracker.hpp"
+#include "visp_images.hpp"
 
 using namespace v4r;
 namespace fs = std::filesystem;
 
 namespace {
-
-/// ViSP's test images: $VISP_INPUT_IMAGE_PATH (with or without the ViSP-images suffix), else
-/// where Debian's visp-images-data installs them. Empty if absent.
-fs::path visp_images() {
-  if (const char* env = std::getenv("VISP_INPUT_IMAGE_PATH"); env != nullptr && *env != '\0') {
-    fs::path p(env);
-    if (p.filename() != "ViSP-images") p /= "ViSP-images";
-    if (fs::is_directory(p)) return p;
-  }
-  const fs::path debian = "/usr/share/visp-images-data/ViSP-images";
-  return fs::is_directory(debian) ? debian : fs::path{};
-}
-
-bool required() {
-  const char* env = std::getenv("V4R_REQUIRE_VISP_IMAGES");
-  return env != nullptr && *env != '\0' && std::string(env) != "0";
-}
-
-#define V4R_NEED_VISP_IMAGES(root)                                                                          \
-  do {                                                                                                      \
-    if ((root).empty()) {                                                                                   \
-      if (required()) FAIL() << "V4R_REQUIRE_VISP_IMAGES is set but ViSP-images is missing "                \
-                                "(apt-get install visp-images-data, or set VISP_INPUT_IMAGE_PATH)";         \
-      GTEST_SKIP() << "visp-images-data is not installed (apt-get install visp-images-data; `make test` "    \
-                      "installs it and sets V4R_REQUIRE_VISP_IMAGES=1)";                                    \
-    }                                                                                                       \
-  } while (0)
 
 double rotation_deg(const Eigen::Matrix3d& a, const Eigen::Matrix3d& b) {
   const double c = std::clamp(((a.transpose() * b).trace() - 1.0) / 2.0, -1.0, 1.0);

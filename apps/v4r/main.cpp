@@ -22,6 +22,7 @@
 #include "v4r/geometry/look_at.hpp"
 #include "v4r/io/camera_io.hpp"
 #include "v4r/io/config_io.hpp"
+#include "v4r/detection/detector_params.hpp"
 #include "v4r/pipeline/params.hpp"
 #include "v4r/io/frame_source.hpp"
 #include "v4r/io/pose_io.hpp"
@@ -35,6 +36,7 @@ using namespace v4r;
 
 namespace v4r::app {
 void add_serve_command(CLI::App& app, int& exit_code);  // serve.cpp
+void add_detect_commands(CLI::App& app, int& exit_code);  // detect.cpp
 }  // namespace v4r::app
 
 namespace {
@@ -226,10 +228,13 @@ int cmd_bench(const RenderArgs& a, int repeat, double budget_ms) {
   return 0;
 }
 
-/// Applies --config FILE and then each --set key=value to the cycle parameters.
+/// Applies --config FILE and then each --set key=value to the cycle parameters (and the
+/// detector's, detect.*, when given; else they are checked and dropped until the cycle uses them).
 Expected<void> configure(pipeline::CycleParams& params, const std::string& config_file,
-                         const std::vector<std::string>& sets) {
+                         const std::vector<std::string>& sets, detection::DetectorParams* detect = nullptr) {
   ParamRegistry reg = pipeline::make_registry(params);
+  detection::DetectorParams unused;
+  detection::add_params(reg, detect ? *detect : unused);
   if (!config_file.empty()) {
     auto r = io::apply_config_file(config_file, reg);
     if (!r) return r;
@@ -348,6 +353,10 @@ int main(int argc, char** argv) {
     int serve_exit = 0;
     app::add_serve_command(app, serve_exit);
     auto* serve = app.get_subcommand("serve");
+    int detect_exit = 0;
+    app::add_detect_commands(app, detect_exit);
+    auto* prepare_cmd = app.get_subcommand("prepare");
+    auto* detect_cmd = app.get_subcommand("detect");
 
     std::string inspect_path;
     app::ModelUnitsArgs inspect_units;
@@ -388,7 +397,7 @@ int main(int argc, char** argv) {
         sub = nullptr;
       }
       if (sub == nullptr || sub == help) {
-        fmt::print(stderr, "v4r help: error: no command '{}' (track, render, demo, bench, config, serve, inspect-model)\n",
+        fmt::print(stderr, "v4r help: error: no command '{}' (track, render, demo, bench, config, serve, inspect-model, prepare, detect)\n",
                    help_topic);
         return 1;
       }
@@ -420,13 +429,17 @@ int main(int argc, char** argv) {
     }
     if (*config) {
       pipeline::CycleParams params;
-      if (auto c = configure(params, cfg_in, cfg_sets); !c) {
+      detection::DetectorParams dparams;
+      if (auto c = configure(params, cfg_in, cfg_sets, &dparams); !c) {
         fmt::print(stderr, "v4r config: error: {}\n", c.error().to_string());
         return 1;
       }
-      fmt::print("# v4r tracker configuration (v4r track --config FILE)\n{}", pipeline::make_registry(params).to_yaml());
+      ParamRegistry reg = pipeline::make_registry(params);
+      detection::add_params(reg, dparams);
+      fmt::print("# v4r tracker configuration (v4r track --config FILE; detect.*: v4r detect / prepare)\n{}", reg.to_yaml());
       return 0;
     }
+    if (*prepare_cmd || *detect_cmd) return detect_exit;
     if (*serve) return serve_exit;
     if (*render) return cmd_render(ra);
     if (*demo) return cmd_demo(demo_out);

@@ -11,6 +11,7 @@
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 
+#include "v4r/detection/detector_params.hpp"
 #include "v4r/io/camera_io.hpp"
 #include "v4r/io/config_io.hpp"
 #include "v4r/io/frame_source.hpp"
@@ -78,6 +79,9 @@ int run_serve(ServeArgs& a) {
     if (const char* t = std::getenv("V4R_SERVE_TOKEN")) a.opt.token = t;
   }
   ParamRegistry reg = pipeline::make_registry(a.opt.params);
+  // detect.* (in files written by `v4r config`) are checked; serve does not detect yet.
+  detection::DetectorParams detect_params;
+  detection::add_params(reg, detect_params);
   if (!a.config_file.empty()) {
     if (auto r = io::apply_config_file(a.config_file, reg); !r) {
       fmt::print(stderr, "v4r serve: error: {}\n", r.error().to_string());

@@ -1,0 +1,66 @@
+// v4r - robust model-based object tracking. MIT licence.
+// The detector at 640x480 on one core (Google Benchmark): a whole detect() (gradients, search,
+// refinement and verification of the hypotheses) on rendered colour images of the box in clutter,
+// and the template build of the box over the default view range.
+#include <array>
+#include <memory>
+#include <random>
+#include <vector>
+
+#include <benchmark/benchmark.h>
+
+#include "../libs/detection/tests/detection_scenes.hpp"
+#include "v4r/detection/detector.hpp"
+#include "v4r/io/frame_source.hpp"
+#include "v4r/model/cao_reader.hpp"
+
+using namespace v4r;
+using namespace v4r::detection;
+
+namespace {
+
+struct Setup {
+  std::shared_ptr<const model::Model> model;
+  std::shared_ptr<const TemplateSet> templates;
+  std::vector<cv::Mat> images;
+  DetectorParams params;
+};
+
+const Setup& setup() {
+  static Setup s;
+  if (!s.images.empty()) return s;
+  auto m = model::parse_cao(synth::box_cao(), "box");
+  s.model = std::make_shared<const model::Model>(std::move(*m));
+  const auto cam = synth::default_camera();
+  s.templates = std::make_shared<const TemplateSet>(std::move(*build_templates(*s.model, cam, s.params)));
+  std::mt19937 rng(7);
+  for (int k = 0; k < 8; ++k) {
+    const geometry::SE3 T = scenes::random_pose(*s.model, s.params.views, cam, rng);
+    s.images.push_back(scenes::render_scene(*s.model, T, cam, scenes::Scene::kClutter, 50u + static_cast<unsigned>(k)));
+  }
+  return s;
+}
+
+void BM_DetectBoxInClutter(benchmark::State& state) {
+  const Setup& s = setup();
+  Detector det(s.model, s.templates, synth::default_camera(), s.params);
+  std::array<Hypothesis, 16> hyp;
+  std::size_t k = 0;
+  for (auto _ : state) {
+    const DetectionResult r = det.detect(io::as_colour_view(s.images[k++ % s.images.size()]), hyp);
+    benchmark::DoNotOptimize(r.hypotheses);
+  }
+}
+BENCHMARK(BM_DetectBoxInClutter)->Unit(benchmark::kMillisecond);
+
+void BM_BuildBoxTemplates(benchmark::State& state) {
+  auto m = model::parse_cao(synth::box_cao(), "box");
+  const DetectorParams p;
+  for (auto _ : state) {
+    auto ts = build_templates(*m, synth::default_camera(), p);
+    benchmark::DoNotOptimize(ts->views.size());
+  }
+}
+BENCHMARK(BM_BuildBoxTemplates)->Unit(benchmark::kMillisecond)->Iterations(1);
+
+}  // namespace

@@ -1,0 +1,113 @@
+// v4r - robust model-based object tracking. MIT licence.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include "v4r/detection/detector_params.hpp"
+#include "v4r/detection/edge_alignment.hpp"
+#include "v4r/detection/gradient_pyramid.hpp"
+#include "v4r/detection/template_set.hpp"
+#include "v4r/geometry/camera.hpp"
+#include "v4r/geometry/se3.hpp"
+#include "v4r/image/colour_view.hpp"
+#include "v4r/image/image_view.hpp"
+#include "v4r/model/model.hpp"
+
+namespace v4r::detection {
+
+/// \brief A pose hypothesis of the detector, refined and verified against the image.
+struct Hypothesis {
+  geometry::SE3 T_cam_obj;      ///< refined pose
+  geometry::SE3 T_template;     ///< the template's pose before refinement
+  double template_score = 0.0;  ///< fine template match, share of the best possible (0..1)
+  Verification verification;    ///< edge test of the refined pose
+  bool verified = false;        ///< verification.score >= detect.verify.accept_score
+  std::uint32_t view = 0;       ///< template view it came from
+};
+
+/// \brief What one detect() call did.
+struct DetectionResult {
+  enum class Status { kOk, kBadImage };
+  Status status = Status::kOk;
+  int hypotheses = 0;         ///< written to `out`, verified first, then by score; distinct (1 cm / 2 degrees apart)
+  int verified = 0;           ///< of which verified
+  int coarse_candidates = 0;  ///< coarse matches taken to the fine level
+  double gradient_ms = 0.0, search_ms = 0.0, refine_ms = 0.0, total_ms = 0.0;
+};
+
+/// \brief Finds a CAD-modelled object in an image without a prior pose (issue 10).
+///
+/// Per frame: gradients (colour: the channel of largest magnitude) at full, 1/2 and 1/4
+/// resolution; quantised orientations spread and turned into response maps; every coarse
+/// template scored at every second pixel of the 1/4 level; the best coarse candidates' child
+/// templates scored around them at 1/2 resolution; the best distinct hypotheses turned into poses
+/// (template view moved to the matched pixel), refined by a 6-DoF edge alignment and verified by
+/// the edge test (share of the projected model's edge samples with a matching gradient).
+///
+/// Use in the vision cycle:
+/// \code
+///   Detector det(model, templates, camera, params);           // set-up: allocates
+///   std::array<Hypothesis, 10> hyp;
+///   DetectionResult r = det.detect(colour_view, hyp);          // per frame: allocates nothing
+///   if (r.verified > 0) start_tracking(hyp[0].T_cam_obj);      // hyp sorted, verified first
+///   // later, e.g. to confirm a pose on a new frame:
+///   det.set_image(colour_view); Verification v = det.verify(T); det.refine(T);
+/// \endcode
+/// detect(), set_image(), verify() and refine() allocate nothing and throw nothing; an image
+/// whose size differs from the camera's gives Status::kBadImage. Not thread-safe (one Detector
+/// per thread; the TemplateSet may be shared).
+class Detector {
+ public:
+  /// `cam` must give the image size (width, height) of the frames; `templates` must be built for
+  /// its focal lengths (build_templates or load_or_build with the same camera and `p`).
+  Detector(std::shared_ptr<const model::Model> model, std::shared_ptr<const TemplateSet> templates,
+           const geometry::PinholeCamera& cam, const DetectorParams& p);
+
+  /// Searches the whole image; writes up to out.size() hypotheses (at most
+  /// detect.search.max_hypotheses), sorted by verification score (verified ones first).
+  DetectionResult detect(const image::ColourView& bgr, std::span<Hypothesis> out);
+  DetectionResult detect(const image::ImageView& grey, std::span<Hypothesis> out);
+
+  /// Computes the gradients of a frame for verify() and refine() without searching.
+  bool set_image(const image::ColourView& bgr);
+  bool set_image(const image::ImageView& grey);
+  /// The edge test of a pose on the last image given to detect() or set_image().
+  Verification verify(const geometry::SE3& T_cam_obj);
+  /// 6-DoF edge alignment of a pose on the last image; returns the iterations that moved it.
+  int refine(geometry::SE3& T_cam_obj);
+
+  [[nodiscard]] const DetectorParams& params() const { return p_; }
+  /// The gradients of the last image (for display and diagnosis).
+  [[nodiscard]] const GradientPyramid& gradients() const { return pyramid_; }
+  [[nodiscard]] const TemplateSet& templates() const { return *templates_; }
+
+ private:
+  struct Candidate {
+    int score = 0;
+    std::uint32_t index = 0;  // coarse template index (coarse stage) or view (fine stage)
+    std::int16_t x = 0, y = 0;
+  };
+  DetectionResult run(std::span<Hypothesis> out);
+  void coarse_search();
+  void fine_search();
+  /// Best fine score (x1000 of the best possible) of a view around 1/2-resolution pixel (cx, cy)
+  /// within detect.search.fine_window, and where; -1 when the template does not fit.
+  int score_fine(std::uint32_t view, int cx, int cy, int& bx, int& by) const;
+
+  std::shared_ptr<const model::Model> model_;
+  std::shared_ptr<const TemplateSet> templates_;
+  geometry::PinholeCamera cam_;
+  DetectorParams p_;
+  GradientPyramid pyramid_;
+  EdgeAligner aligner_;
+  std::vector<std::uint8_t> acc_;         // coarse accumulator, lin_width x lin_height
+  std::vector<Candidate> coarse_;         // top coarse candidates (size <= coarse_candidates)
+  std::vector<Candidate> fine_;           // fine candidates
+  std::vector<Candidate> picked_;         // distinct fine candidates
+  std::vector<Hypothesis> work_;          // refined hypotheses before sorting
+};
+
+}  // namespace v4r::detection

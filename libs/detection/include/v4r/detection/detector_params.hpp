@@ -1,0 +1,84 @@
+// v4r - robust model-based object tracking. MIT licence.
+#pragma once
+
+#include "v4r/core/params.hpp"
+
+namespace v4r::detection {
+
+/// \brief The range of views the detector searches: where the camera may be around the object
+/// (elevation above the object's x-y plane, azimuth about its z axis, distance from the centre
+/// of its bounding box) and how far the image may be turned about the optical axis.
+struct ViewRange {
+  double elevation_min_deg = 15.0;  ///< degrees, -89 .. 89
+  double elevation_max_deg = 75.0;  ///< degrees
+  double azimuth_min_deg = 0.0;     ///< degrees; a span of 360 or more is the full circle
+  double azimuth_max_deg = 360.0;   ///< degrees
+  double inplane_min_deg = -30.0;   ///< degrees: turn of the image about the optical axis
+  double inplane_max_deg = 30.0;    ///< degrees
+  /// Metres, camera to the bounding box centre; 0: where the model's bounding sphere spans
+  /// 400 px across (see resolve_view_range).
+  double distance_min_m = 0.0;
+  double distance_max_m = 0.0;      ///< metres; 0: where the bounding sphere spans 150 px
+};
+
+/// \brief How the view templates are sampled (offline; part of the template cache key).
+struct TemplateParams {
+  double view_step_deg = 7.0;      ///< degrees between neighbouring views in elevation and azimuth
+  double inplane_step_deg = 7.0;   ///< degrees between in-plane rotations
+  double scale_step = 1.12;        ///< ratio of neighbouring template distances (> 1)
+  int coarse_stride = 3;           ///< every coarse_stride-th view along each grid axis gets a coarse template
+  int coarse_features = 20;        ///< features per coarse template (1/4 resolution)
+  int fine_features = 48;          ///< features per fine template (1/2 resolution)
+  double crease_angle_deg = 10.0;  ///< edges between faces closer than this in normal are no edge
+};
+
+/// \brief The online search: gradients, spreading, coarse-to-fine template matching.
+struct SearchParams {
+  double min_gradient = 8.0;      ///< grey levels per pixel (a step of 2x this across an edge): weaker gradients carry no orientation
+  int coarse_spread = 2;          ///< px at 1/4 resolution: orientations spread over (2r+1)^2
+  int fine_spread = 2;            ///< px at 1/2 resolution
+  double coarse_min_score = 0.5;  ///< share of the best possible coarse score a candidate needs
+  int coarse_candidates = 300;    ///< coarse candidates probed at the fine level (their own view)
+  int fine_expand = 64;           ///< best probed candidates whose neighbouring views are searched
+  int fine_window = 2;            ///< px at 1/2 resolution searched around a coarse candidate
+  int max_hypotheses = 16;        ///< hypotheses refined and verified per frame
+};
+
+/// \brief Local refinement and verification of a hypothesis against the image's edges.
+struct VerifyParams {
+  double sample_spacing_px = 5.0;   ///< px between edge samples of the projected model
+  int max_samples = 400;            ///< at most this many samples (spacing grows on large views)
+  double refine_search_px = 12.0;   ///< px searched along the normal in the first refinement pass
+  int depth_scan_steps = 3;         ///< distances tried either side of a hypothesis before refining
+  double depth_scan_step = 0.03;    ///< relative distance step of that scan
+  int refine_iterations = 12;       ///< Gauss-Newton iterations of the 6-DoF edge alignment
+  double match_distance_px = 1.5;   ///< px: a sample matches a gradient this close along its normal
+  double match_angle_deg = 15.0;    ///< degrees: ... whose orientation is this close to the edge normal
+  double min_gradient = 8.0;        ///< grey levels per pixel of a matching gradient (a step of 2x this)
+  int min_samples = 30;             ///< fewer visible samples: a pose cannot be verified
+  double peak_tolerance = 1.0;      ///< a match's neighbours along the normal may have at most this times its gradient
+  bool short_pieces = true;         ///< an edge piece shorter than min_run counts when all of it matches
+  int min_run = 4;                  ///< consecutive matched samples of one polarity along an edge that count
+  double accept_score = 0.75;       ///< share of samples matched for a verified pose
+};
+
+/// \brief All parameters of the detector.
+struct DetectorParams {
+  ViewRange views;
+  TemplateParams templates;
+  SearchParams search;
+  VerifyParams verify;
+};
+
+/// The view range with automatic distances filled in for a model (`radius`: of its bounding
+/// sphere about the bounding box centre, metres) and a camera's focal length `focal_px`.
+ViewRange resolve_view_range(const ViewRange& v, double radius, double focal_px);
+
+/// Registers every detector parameter under `detect.*` (units and ranges) in `r`; `p` must
+/// outlive the registry.
+void add_params(ParamRegistry& r, DetectorParams& p);
+
+/// Checks the parameters together (min below max, enough features): an error names the field.
+Expected<void> validate(const DetectorParams& p);
+
+}  // namespace v4r::detection

@@ -1,0 +1,58 @@
+// v4r - robust model-based object tracking. MIT licence.
+#pragma once
+
+#include <vector>
+
+#include "v4r/detection/detector_params.hpp"
+#include "v4r/detection/edge_projection.hpp"
+#include "v4r/detection/gradient_pyramid.hpp"
+#include "v4r/geometry/camera.hpp"
+#include "v4r/geometry/se3.hpp"
+#include "v4r/model/model.hpp"
+
+namespace v4r::detection {
+
+/// \brief The verdict of the edge test on one pose.
+struct Verification {
+  /// Share of the projected model's edge samples with a matching gradient that lie in runs of
+  /// matches along their edge (0..1): scattered matches, as texture gives them, do not count.
+  double score = 0.0;
+  int samples = 0;     ///< visible edge samples of the model at the pose
+  int matched = 0;     ///< ... of which matched a gradient in position and orientation
+  int in_runs = 0;     ///< matched samples in runs of at least VerifyParams::min_run consecutive matches along an edge
+  double match_share = 0.0;  ///< matched / samples (score counts in_runs / samples)
+};
+
+/// \brief The local 6-DoF alignment of a pose to the image's edges (Gauss-Newton on the
+/// distances, along the projected edge normals, from the model's edge samples to the strongest
+/// gradient of the same orientation within a search range that shrinks over the iterations),
+/// and the verification of a pose: the share of the model's visible edge samples that have a
+/// gradient within `match_distance` along the normal and `match_angle` of the normal. Works on the
+/// full-resolution gradients of a GradientPyramid; buffers are sized at construction.
+class EdgeAligner {
+ public:
+  EdgeAligner(const model::Model& model, const geometry::PinholeCamera& cam, const DetectorParams& p);
+
+  /// Refines `T_cam_obj` in place: first the distance along the line of sight is scanned
+  /// (p.verify.depth_scan_steps steps of depth_scan_step either side, kept where most edge
+  /// samples find a gradient), then p.verify.refine_iterations Gauss-Newton iterations; returns
+  /// the number of iterations that moved the pose (0: too few edges matched).
+  int refine(const GradientPyramid& g, geometry::SE3& T_cam_obj);
+  /// The edge test of a pose.
+  Verification verify(const GradientPyramid& g, const geometry::SE3& T_cam_obj);
+
+ private:
+  /// Share of edge samples with an aligned gradient within `range` px (no runs, loose angle).
+  double loose_share(const GradientPyramid& g, const geometry::SE3& T, double range);
+  /// Signed offset (px) along `n` of the best gradient within `range` px of `px`, or NaN.
+  double search(const GradientPyramid& g, const Eigen::Vector2d& px, const Eigen::Vector2d& n, double range) const;
+
+  geometry::PinholeCamera cam_;
+  VerifyParams p_;
+  double min_sobel2_;  // squared threshold in Sobel units
+  double cos_match_, cos_search_;
+  EdgeProjector projector_;
+  std::vector<EdgeSample> samples_;
+};
+
+}  // namespace v4r::detection

@@ -1,0 +1,77 @@
+// v4r - robust model-based object tracking. MIT licence.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "v4r/geometry/camera.hpp"
+#include "v4r/geometry/se3.hpp"
+#include "v4r/model/model.hpp"
+
+namespace v4r::detection {
+
+/// \brief A point on a visible edge of the projected model: its object-frame position, its pixel
+/// and the unit normal of the projected edge there (image frame, sign arbitrary).
+struct EdgeSample {
+  Eigen::Vector3d p_obj = Eigen::Vector3d::Zero();
+  Eigen::Vector2d px = Eigen::Vector2d::Zero();
+  Eigen::Vector2d normal = Eigen::Vector2d::UnitX();
+  std::uint32_t piece = 0;  ///< samples of one edge piece are consecutive and share this number
+};
+
+/// \brief Samples the edges a camera sees of a model at a pose: silhouette and crease lines
+/// (a line bounded by faces shows when one of them faces the camera, and not between faces whose
+/// normals differ by less than the crease angle), circle arcs and the limb lines of cylinders,
+/// with hidden-line removal (a point is dropped when a face turned towards the camera, or a
+/// cylinder, lies on its line of sight before it). Points outside the image are dropped.
+/// Buffers are sized for the model at construction; sample() allocates nothing.
+class EdgeProjector {
+ public:
+  /// `crease_angle` in radians.
+  EdgeProjector(const model::Model& model, double crease_angle);
+
+  /// Writes samples about `spacing_px` apart (pixels of `cam`) into `out` and returns how many;
+  /// when `out` is too small, the spacing grows so that every edge is still covered evenly.
+  /// `margin_px`: samples nearer the image border are dropped (< 0: no image bounds at all, for
+  /// templates whose camera has no size).
+  std::size_t sample(const geometry::SE3& T_cam_obj, const geometry::PinholeCamera& cam, double spacing_px,
+                     std::span<EdgeSample> out, double margin_px = 2.0);
+
+  [[nodiscard]] const model::Model& model() const { return model_; }
+
+ private:
+  struct FaceCache {
+    Eigen::Vector3d n_cam = Eigen::Vector3d::UnitZ();
+    double d = 0.0;
+    Eigen::Vector2d lo, hi;
+    std::uint32_t first = 0, count = 0;
+    bool front = false;
+  };
+  struct CylCache {
+    Eigen::Vector3d p1, axis;
+    double length = 0.0, radius = 0.0;
+  };
+  /// One 3-D curve piece to sample: a line (a..b) or an arc.
+  struct Piece {
+    Eigen::Vector3d a = Eigen::Vector3d::Zero(), b = Eigen::Vector3d::Zero();  // line ends (object frame)
+    int arc = -1;          // arc index or -1
+    model::Index face_a = model::kNone, face_b = model::kNone;
+    int cylinder = -1;     // cylinder the piece lies on (limbs: not occluded by it)
+  };
+  void prepare(const geometry::SE3& T, const geometry::PinholeCamera& cam);
+  [[nodiscard]] bool hidden(const Eigen::Vector3d& p_cam, model::Index fa, model::Index fb, int own_cylinder) const;
+  [[nodiscard]] Eigen::Vector3d piece_point(const Piece& pc, double s) const;
+
+  const model::Model& model_;
+  double cos_crease_;
+  std::vector<FaceCache> faces_;
+  std::vector<CylCache> cyls_;
+  std::vector<Eigen::Vector2d> poly_;
+  std::vector<Piece> pieces_;
+  std::vector<double> piece_len_;
+};
+
+}  // namespace v4r::detection

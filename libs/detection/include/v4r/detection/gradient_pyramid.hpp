@@ -1,0 +1,71 @@
+// v4r - robust model-based object tracking. MIT licence.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "v4r/image/colour_view.hpp"
+#include "v4r/image/image_view.hpp"
+
+namespace v4r::detection {
+
+/// Number of quantised gradient orientations over 180 degrees (polarity is ignored).
+inline constexpr int kOrientations = 8;
+
+/// Quantised orientation (0 .. kOrientations-1) of a direction (x, y), modulo 180 degrees:
+/// bin k covers [k, k+1) * 180 / kOrientations degrees.
+int quantise_orientation(double x, double y);
+
+/// Similarity of two quantised orientations as the response maps score it: 4 when equal, 1 when
+/// neighbours (22.5 degrees apart), else 0.
+int orientation_similarity(int a, int b);
+
+/// \brief One level of the orientation pyramid: quantised orientations, their spread over a
+/// square neighbourhood and the response map per orientation (uint8 per pixel, the best
+/// similarity of the template orientation to any orientation spread onto that pixel).
+struct OrientationLevel {
+  int width = 0, height = 0;
+  int spread = 0;  ///< px
+  std::vector<std::uint8_t> image;   ///< this level's pixels (1 or 3 channels, interleaved)
+  std::vector<std::uint8_t> bits;    ///< per pixel: 1 << orientation, 0 when the gradient is weak
+  std::vector<std::uint8_t> spread_bits;
+  std::array<std::vector<std::uint8_t>, kOrientations> response;  ///< width * height each
+  /// Response maps split into the four 2x2 phases (stride-2 evaluation with contiguous rows):
+  /// Only at the coarse level: linear[o][py * 2 + px] has lin_width x lin_height pixels, entry (i, j) = response (2i+px, 2j+py).
+  std::array<std::array<std::vector<std::uint8_t>, 4>, kOrientations> linear;
+  int lin_width = 0, lin_height = 0;
+};
+
+/// \brief The image side of detection, computed once per frame into buffers sized at
+/// construction (no allocation per frame): Sobel gradients at full resolution (of the channel
+/// with the largest gradient for colour input) for refinement and verification, and orientation
+/// levels at 1/2 and 1/4 resolution for the template search.
+class GradientPyramid {
+ public:
+  GradientPyramid(int width, int height, int fine_spread, int coarse_spread);
+
+  /// Computes everything for a grey or BGR image of the constructor's size. `min_gradient` in
+  /// grey levels per pixel. Returns false (and computes nothing) when the size differs.
+  bool compute(const image::ImageView& grey, double min_gradient);
+  bool compute(const image::ColourView& bgr, double min_gradient);
+
+  [[nodiscard]] int width() const { return width_; }
+  [[nodiscard]] int height() const { return height_; }
+  /// Full-resolution Sobel gradient (8x the gradient in grey levels per pixel).
+  [[nodiscard]] std::int16_t gx(int x, int y) const { return gx_[static_cast<std::size_t>(y) * width_ + x]; }
+  [[nodiscard]] std::int16_t gy(int x, int y) const { return gy_[static_cast<std::size_t>(y) * width_ + x]; }
+  [[nodiscard]] const OrientationLevel& fine() const { return fine_; }      ///< 1/2 resolution
+  [[nodiscard]] const OrientationLevel& coarse() const { return coarse_; }  ///< 1/4 resolution
+
+ private:
+  bool compute_from(const std::uint8_t* data, int stride, int channels, double min_gradient);
+  void orientations(OrientationLevel& level, int channels, double min_gradient, bool linear);
+
+  int width_, height_;
+  std::vector<std::int16_t> gx_, gy_;
+  std::vector<std::int16_t> lgx_, lgy_;  // scratch for the levels
+  OrientationLevel fine_, coarse_;
+};
+
+}  // namespace v4r::detection

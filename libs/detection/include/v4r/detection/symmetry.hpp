@@ -1,0 +1,27 @@
+// v4r - robust model-based object tracking. MIT licence.
+#pragma once
+
+#include <vector>
+
+#include "v4r/geometry/se3.hpp"
+#include "v4r/model/model.hpp"
+
+namespace v4r::detection {
+
+/// \brief The proper symmetries of a model among the 24 rotations that map the axes of its
+/// object frame onto each other, about the centre of its bounding box: the transforms S (object
+/// frame to object frame) with S(model) == model (every junction onto a junction, every line
+/// onto a line, every cylinder onto a cylinder, within `tol` metres). Always holds the identity.
+/// An edge-based detector cannot tell T_cam_obj from T_cam_obj * S.
+std::vector<geometry::SE3> model_symmetries(const model::Model& model, double tol = 1e-6);
+
+/// \brief Translation (metres) and rotation (radians) error of `estimate` against `truth`, the
+/// smallest over the symmetries (T_cam_obj * S, S from model_symmetries).
+struct PoseError {
+  double translation = 0.0;
+  double rotation = 0.0;
+};
+PoseError symmetric_pose_error(const geometry::SE3& estimate, const geometry::SE3& truth,
+                               const std::vector<geometry::SE3>& symmetries);
+
+}  // namespace v4r::detection

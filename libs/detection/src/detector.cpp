@@ -1,0 +1,217 @@
+// v4r - robust model-based object tracking. MIT licence.
+#include "v4r/detection/detector.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "v4r/core/clock.hpp"
+
+namespace v4r::detection {
+
+Detector::Detector(std::shared_ptr<const model::Model> model, std::shared_ptr<const TemplateSet> templates,
+                   const geometry::PinholeCamera& cam, const DetectorParams& p)
+    : model_(std::move(model)),
+      templates_(std::move(templates)),
+      cam_(cam),
+      p_(p),
+      pyramid_(cam.width, cam.height, p.search.fine_spread, p.search.coarse_spread),
+      aligner_(*model_, cam, p) {
+  const OrientationLevel& c = pyramid_.coarse();
+  acc_.assign(static_cast<std::size_t>(c.lin_width) * c.lin_height, 0);
+  coarse_.reserve(static_cast<std::size_t>(p_.search.coarse_candidates) + 1);
+  std::size_t max_children = 0;
+  for (std::size_t k = 0; k + 1 < templates_->child_offsets.size(); ++k)
+    max_children = std::max<std::size_t>(max_children, templates_->child_offsets[k + 1] - templates_->child_offsets[k]);
+  fine_.reserve(static_cast<std::size_t>(p_.search.fine_expand) * max_children + 1);
+  picked_.reserve(static_cast<std::size_t>(p_.search.max_hypotheses));
+  work_.reserve(static_cast<std::size_t>(p_.search.max_hypotheses));
+}
+
+bool Detector::set_image(const image::ColourView& bgr) { return pyramid_.compute(bgr, p_.search.min_gradient); }
+bool Detector::set_image(const image::ImageView& grey) { return pyramid_.compute(grey, p_.search.min_gradient); }
+Verification Detector::verify(const geometry::SE3& T) { return aligner_.verify(pyramid_, T); }
+int Detector::refine(geometry::SE3& T) { return aligner_.refine(pyramid_, T); }
+
+DetectionResult Detector::detect(const image::ColourView& bgr, std::span<Hypothesis> out) {
+  const auto t0 = Clock::now();
+  if (!set_image(bgr)) return DetectionResult{DetectionResult::Status::kBadImage};
+  DetectionResult r = run(out);
+  r.gradient_ms = ms_between(t0, Clock::now()) - r.search_ms - r.refine_ms;
+  r.total_ms = ms_between(t0, Clock::now());
+  return r;
+}
+
+DetectionResult Detector::detect(const image::ImageView& grey, std::span<Hypothesis> out) {
+  const auto t0 = Clock::now();
+  if (!set_image(grey)) return DetectionResult{DetectionResult::Status::kBadImage};
+  DetectionResult r = run(out);
+  r.gradient_ms = ms_between(t0, Clock::now()) - r.search_ms - r.refine_ms;
+  r.total_ms = ms_between(t0, Clock::now());
+  return r;
+}
+
+void Detector::coarse_search() {
+  const TemplateSet& ts = *templates_;
+  const OrientationLevel& L = pyramid_.coarse();
+  const int lw = L.lin_width;
+  const std::size_t K = static_cast<std::size_t>(p_.search.coarse_candidates);
+  coarse_.clear();
+  int worst = 0;  // smallest score in coarse_ once it is full
+  for (std::size_t k = 0; k < ts.coarse.templates.size(); ++k) {
+    const Template& t = ts.coarse.templates[k];
+    if (t.count < 4) continue;
+    // Anchors (2i, 2j) whose template lies inside the level.
+    const int i0 = (-t.x0 + 1) / 2;
+    const int j0 = (-t.y0 + 1) / 2;
+    const int i1 = (L.width - 1 - t.x1) / 2, j1 = (L.height - 1 - t.y1) / 2;
+    const int ilo = std::max(0, i0), jlo = std::max(0, j0);
+    if (i1 < ilo || j1 < jlo || 2 * i1 + t.x1 > L.width - 1 || 2 * j1 + t.y1 > L.height - 1) continue;
+    const int aw = i1 - ilo + 1, ah = j1 - jlo + 1;
+    std::fill(acc_.begin(), acc_.begin() + static_cast<std::ptrdiff_t>(aw) * ah, 0);
+    for (std::uint32_t f = t.first; f < t.first + t.count; ++f) {
+      const Feature& ft = ts.coarse.features[f];
+      const int px = ft.x & 1, py = ft.y & 1;
+      const int dx = (ft.x - px) / 2, dy = (ft.y - py) / 2;
+      const std::uint8_t* lin = L.linear[ft.orientation][py * 2 + px].data();
+      for (int j = 0; j < ah; ++j) {
+        const std::uint8_t* src = lin + static_cast<std::size_t>(jlo + j + dy) * lw + (ilo + dx);
+        std::uint8_t* dst = acc_.data() + static_cast<std::size_t>(j) * aw;
+        for (int i = 0; i < aw; ++i) dst[i] = static_cast<std::uint8_t>(dst[i] + src[i]);
+      }
+    }
+    int best = -1, bi = 0;
+    const int n = aw * ah;
+    for (int i = 0; i < n; ++i)
+      if (acc_[static_cast<std::size_t>(i)] > best) {
+        best = acc_[static_cast<std::size_t>(i)];
+        bi = i;
+      }
+    const int min_score = static_cast<int>(std::ceil(p_.search.coarse_min_score * 4.0 * t.count));
+    if (best < min_score) continue;
+    // Scores compared as shares of each template's best possible score (x1000).
+    const int share = static_cast<int>(1000.0 * best / (4.0 * t.count));
+    if (coarse_.size() >= K && share <= worst) continue;
+    Candidate c{share, static_cast<std::uint32_t>(k), static_cast<std::int16_t>(2 * (ilo + bi % aw)),
+                static_cast<std::int16_t>(2 * (jlo + bi / aw))};
+    if (coarse_.size() < K) {
+      coarse_.push_back(c);
+    } else {
+      auto it = std::min_element(coarse_.begin(), coarse_.end(), [](const Candidate& a, const Candidate& b) { return a.score < b.score; });
+      *it = c;
+    }
+    if (coarse_.size() >= K)
+      worst = std::min_element(coarse_.begin(), coarse_.end(), [](const Candidate& a, const Candidate& b) { return a.score < b.score; })->score;
+  }
+}
+
+int Detector::score_fine(std::uint32_t view, int cx, int cy, int& bx, int& by) const {
+  const TemplateSet& ts = *templates_;
+  const OrientationLevel& L = pyramid_.fine();
+  const int w = L.width, h = L.height, r = p_.search.fine_window;
+  const Template& t = ts.fine.templates[view];
+  if (t.count < 8) return -1;
+  int best = -1;
+  for (int y = cy - r; y <= cy + 1 + r; ++y) {
+    if (y + t.y0 < 0 || y + t.y1 >= h) continue;
+    for (int x = cx - r; x <= cx + 1 + r; ++x) {
+      if (x + t.x0 < 0 || x + t.x1 >= w) continue;
+      int s = 0;
+      for (std::uint32_t f = t.first; f < t.first + t.count; ++f) {
+        const Feature& ft = ts.fine.features[f];
+        s += L.response[ft.orientation][static_cast<std::size_t>(y + ft.y) * w + (x + ft.x)];
+      }
+      if (s > best) {
+        best = s;
+        bx = x;
+        by = y;
+      }
+    }
+  }
+  return best < 0 ? -1 : static_cast<int>(1000.0 * best / (4.0 * t.count));
+}
+
+void Detector::fine_search() {
+  const TemplateSet& ts = *templates_;
+  fine_.clear();
+  // Probe: every coarse candidate's own view at the fine level ranks the candidates; only the
+  // best fine_expand are expanded to their children.
+  for (Candidate& c : coarse_) {
+    int bx = 2 * c.x, by = 2 * c.y;
+    const int s = score_fine(ts.coarse_views[c.index], 2 * c.x, 2 * c.y, bx, by);
+    c.score = s;
+  }
+  std::sort(coarse_.begin(), coarse_.end(), [](const Candidate& a, const Candidate& b) { return a.score > b.score; });
+  const std::size_t expand = std::min(coarse_.size(), static_cast<std::size_t>(p_.search.fine_expand));
+  for (std::size_t k = 0; k < expand; ++k) {
+    const Candidate& c = coarse_[k];
+    if (c.score < 0) break;
+    const int cx = 2 * c.x, cy = 2 * c.y;  // 1/4 -> 1/2 resolution
+    for (std::uint32_t ci = ts.child_offsets[c.index]; ci < ts.child_offsets[c.index + 1]; ++ci) {
+      const std::uint32_t view = ts.children[ci];
+      int bx = cx, by = cy;
+      const int s = score_fine(view, cx, cy, bx, by);
+      if (s < 0) continue;
+      fine_.push_back(Candidate{s, view, static_cast<std::int16_t>(bx), static_cast<std::int16_t>(by)});
+    }
+  }
+  std::sort(fine_.begin(), fine_.end(), [](const Candidate& a, const Candidate& b) { return a.score > b.score; });
+  // Distinct hypotheses: not the same place with nearly the same view.
+  picked_.clear();
+  const std::size_t want = static_cast<std::size_t>(p_.search.max_hypotheses);
+  for (const Candidate& c : fine_) {
+    if (picked_.size() >= want) break;
+    bool dup = false;
+    for (const Candidate& q : picked_) {
+      if (std::abs(q.x - c.x) > 3 || std::abs(q.y - c.y) > 3) continue;
+      const TemplateView& a = ts.views[q.index];
+      const TemplateView& b = ts.views[c.index];
+      if (std::abs(a.distance - b.distance) <= 1 && geometry::rotation_angle_between(a.T_cam_obj, b.T_cam_obj) < 0.3) {
+        dup = true;
+        break;
+      }
+    }
+    if (!dup) picked_.push_back(c);
+  }
+}
+
+DetectionResult Detector::run(std::span<Hypothesis> out) {
+  DetectionResult r;
+  const auto t0 = Clock::now();
+  coarse_search();
+  fine_search();
+  r.coarse_candidates = static_cast<int>(coarse_.size());
+  const auto t1 = Clock::now();
+  r.search_ms = ms_between(t0, t1);
+  work_.clear();
+  for (const Candidate& c : picked_) {
+    Hypothesis h;
+    h.view = c.index;
+    h.template_score = c.score / 1000.0;
+    h.T_cam_obj = pose_at_pixel(*templates_, c.index, cam_, 2.0 * c.x + 0.5, 2.0 * c.y + 0.5);
+    h.T_template = h.T_cam_obj;
+    aligner_.refine(pyramid_, h.T_cam_obj);
+    h.verification = aligner_.verify(pyramid_, h.T_cam_obj);
+    h.verified = h.verification.samples >= p_.verify.min_samples && h.verification.score >= p_.verify.accept_score;
+    work_.push_back(h);
+  }
+  std::sort(work_.begin(), work_.end(), [](const Hypothesis& a, const Hypothesis& b) {
+    if (a.verified != b.verified) return a.verified;
+    return a.verification.score > b.verification.score;
+  });
+  // Hypotheses that converged to the same pose are given once (the best ranked).
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < work_.size() && n < out.size(); ++i) {
+    bool dup = false;
+    for (std::size_t j = 0; j < n && !dup; ++j)
+      dup = (out[j].T_cam_obj.translation() - work_[i].T_cam_obj.translation()).norm() < 0.01 &&
+            geometry::rotation_angle_between(out[j].T_cam_obj, work_[i].T_cam_obj) < 0.035;
+    if (dup) continue;
+    out[n++] = work_[i];
+    r.verified += work_[i].verified ? 1 : 0;
+  }
+  r.hypotheses = static_cast<int>(n);
+  r.refine_ms = ms_between(t1, Clock::now());
+  return r;
+}
+
+}  // namespace v4r::detection

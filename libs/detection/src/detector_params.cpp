@@ -1,0 +1,94 @@
+// v4r - robust model-based object tracking. MIT licence.
+#include "v4r/detection/detector_params.hpp"
+
+#include <fmt/format.h>
+
+namespace v4r::detection {
+
+ViewRange resolve_view_range(const ViewRange& v, double radius, double focal_px) {
+  ViewRange out = v;
+  if (out.distance_min_m <= 0.0) out.distance_min_m = focal_px * 2.0 * radius / 400.0;
+  if (out.distance_max_m <= 0.0) out.distance_max_m = focal_px * 2.0 * radius / 150.0;
+  if (out.distance_max_m < out.distance_min_m) out.distance_max_m = out.distance_min_m;
+  return out;
+}
+
+void add_params(ParamRegistry& r, DetectorParams& p) {
+  auto& v = p.views;
+  r.add("detect.views.elevation_min", &v.elevation_min_deg, -89.0, 89.0, "deg", "lowest camera elevation above the object's x-y plane");
+  r.add("detect.views.elevation_max", &v.elevation_max_deg, -89.0, 89.0, "deg", "highest camera elevation");
+  r.add("detect.views.azimuth_min", &v.azimuth_min_deg, -360.0, 360.0, "deg", "first camera azimuth about the object's z axis");
+  r.add("detect.views.azimuth_max", &v.azimuth_max_deg, -360.0, 720.0, "deg", "last camera azimuth (a span of 360: all around)");
+  r.add("detect.views.inplane_min", &v.inplane_min_deg, -180.0, 180.0, "deg", "smallest turn of the image about the optical axis");
+  r.add("detect.views.inplane_max", &v.inplane_max_deg, -180.0, 180.0, "deg", "largest turn of the image about the optical axis");
+  r.add("detect.views.distance_min", &v.distance_min_m, 0.0, 100.0, "m", "nearest camera distance to the object's centre (0: where the object spans 400 px)");
+  r.add("detect.views.distance_max", &v.distance_max_m, 0.0, 100.0, "m", "farthest camera distance to the object's centre (0: where it spans 150 px)");
+  auto& t = p.templates;
+  r.add("detect.templates.view_step", &t.view_step_deg, 2.0, 45.0, "deg", "elevation and azimuth step between template views");
+  r.add("detect.templates.inplane_step", &t.inplane_step_deg, 2.0, 90.0, "deg", "step between in-plane rotations");
+  r.add("detect.templates.scale_step", &t.scale_step, 1.02, 2.0, "", "distance ratio between template scales");
+  r.add("detect.templates.coarse_stride", &t.coarse_stride, 1, 4, "", "every n-th view along each grid axis has a coarse template (its children: the views within n/2 steps)");
+  r.add("detect.templates.coarse_features", &t.coarse_features, 4, 63, "", "orientation features per coarse template (1/4 resolution)");
+  r.add("detect.templates.fine_features", &t.fine_features, 8, 63, "", "orientation features per fine template (1/2 resolution)");
+  r.add("detect.templates.crease_angle", &t.crease_angle_deg, 0.0, 90.0, "deg", "edges between faces closer than this in normal are not in templates");
+  auto& s = p.search;
+  r.add("detect.search.min_gradient", &s.min_gradient, 0.0, 255.0, "grey/px", "weaker gradients carry no orientation");
+  r.add("detect.search.coarse_spread", &s.coarse_spread, 0, 8, "px", "orientation spreading radius at 1/4 resolution");
+  r.add("detect.search.fine_spread", &s.fine_spread, 0, 8, "px", "orientation spreading radius at 1/2 resolution");
+  r.add("detect.search.coarse_min_score", &s.coarse_min_score, 0.0, 1.0, "", "share of the best coarse score a candidate needs");
+  r.add("detect.search.coarse_candidates", &s.coarse_candidates, 1, 1024, "", "coarse candidates probed at 1/2 resolution with their own view");
+  r.add("detect.search.fine_expand", &s.fine_expand, 1, 1024, "", "best probed candidates whose neighbouring views are searched at 1/2 resolution");
+  r.add("detect.search.fine_window", &s.fine_window, 0, 8, "px", "half window at 1/2 resolution around a coarse candidate");
+  r.add("detect.search.max_hypotheses", &s.max_hypotheses, 1, 64, "", "hypotheses refined and verified per frame");
+  auto& f = p.verify;
+  r.add("detect.verify.sample_spacing", &f.sample_spacing_px, 1.0, 50.0, "px", "spacing of the projected model's edge samples");
+  r.add("detect.verify.max_samples", &f.max_samples, 16, 4096, "", "edge samples per pose at most");
+  r.add("detect.verify.refine_search", &f.refine_search_px, 1.0, 64.0, "px", "search range along the normal of the first refinement pass");
+  r.add("detect.verify.depth_scan_steps", &f.depth_scan_steps, 0, 20, "", "distances tried either side of a hypothesis before its refinement");
+  r.add("detect.verify.depth_scan_step", &f.depth_scan_step, 0.001, 0.5, "", "relative distance step of that scan");
+  r.add("detect.verify.refine_iterations", &f.refine_iterations, 0, 100, "", "iterations of the 6-DoF edge alignment of a hypothesis");
+  r.add("detect.verify.match_distance", &f.match_distance_px, 0.5, 10.0, "px", "a sample matches a gradient this close along its normal");
+  r.add("detect.verify.match_angle", &f.match_angle_deg, 1.0, 90.0, "deg", "largest angle between a matching gradient and the edge normal");
+  r.add("detect.verify.min_gradient", &f.min_gradient, 0.0, 255.0, "grey/px", "weakest gradient that matches a sample");
+  r.add("detect.verify.min_samples", &f.min_samples, 3, 4096, "", "fewer visible edge samples: the pose is not verified");
+  r.add("detect.verify.peak_tolerance", &f.peak_tolerance, 1.0, 10.0, "",
+        "a matching gradient is an edge: its neighbours 1 px along the normal have at most this times its gradient");
+  r.add("detect.verify.short_pieces", &f.short_pieces, "an edge piece shorter than min_run samples counts when all of it matches");
+  r.add("detect.verify.min_run", &f.min_run, 1, 64, "", "matched samples count only in runs of this many consecutive matches along an edge");
+  r.add("detect.verify.accept_score", &f.accept_score, 0.0, 1.0, "", "share of matched edge samples of a verified pose");
+}
+
+Expected<void> validate(const DetectorParams& p) {
+  const auto bad = [](const char* field, std::string msg) {
+    Error e;
+    e.field = field;
+    e.message = std::move(msg);
+    return Unexpected{std::move(e)};
+  };
+  const ViewRange& v = p.views;
+  if (v.elevation_min_deg > v.elevation_max_deg)
+    return bad("detect.views.elevation_min", fmt::format("{} is above elevation_max {}", v.elevation_min_deg, v.elevation_max_deg));
+  if (v.elevation_min_deg < -89.0 || v.elevation_max_deg > 89.0)
+    return bad("detect.views.elevation_max", "elevations must lie within -89 .. 89 degrees");
+  if (v.azimuth_min_deg > v.azimuth_max_deg)
+    return bad("detect.views.azimuth_min", fmt::format("{} is above azimuth_max {}", v.azimuth_min_deg, v.azimuth_max_deg));
+  if (v.inplane_min_deg > v.inplane_max_deg)
+    return bad("detect.views.inplane_min", fmt::format("{} is above inplane_max {}", v.inplane_min_deg, v.inplane_max_deg));
+  if (v.distance_min_m < 0.0 || v.distance_max_m < 0.0)
+    return bad("detect.views.distance_min", "distances must be positive (or 0: automatic)");
+  if (v.distance_min_m > 0.0 && v.distance_max_m > 0.0 && v.distance_min_m > v.distance_max_m)
+    return bad("detect.views.distance_min", fmt::format("{} is above distance_max {}", v.distance_min_m, v.distance_max_m));
+  if (!(p.templates.scale_step > 1.0)) return bad("detect.templates.scale_step", "must be above 1");
+  if (!(p.templates.view_step_deg > 0.0)) return bad("detect.templates.view_step", "must be positive");
+  if (!(p.templates.inplane_step_deg > 0.0)) return bad("detect.templates.inplane_step", "must be positive");
+  if (p.templates.coarse_features < 4 || p.templates.coarse_features > 63)
+    return bad("detect.templates.coarse_features", "must lie within 4 .. 63");
+  if (p.templates.fine_features < 8 || p.templates.fine_features > 63)
+    return bad("detect.templates.fine_features", "must lie within 8 .. 63");
+  if (p.templates.coarse_stride < 1 || p.templates.coarse_stride > 4)
+    return bad("detect.templates.coarse_stride", "must lie within 1 .. 4");
+  if (p.search.max_hypotheses < 1) return bad("detect.search.max_hypotheses", "must be at least 1");
+  return {};
+}
+
+}  // namespace v4r::detection

@@ -1,0 +1,186 @@
+// v4r - robust model-based object tracking. MIT licence.
+#include "v4r/detection/edge_alignment.hpp"
+
+#include <cmath>
+#include <limits>
+
+#include <Eigen/Cholesky>
+
+namespace v4r::detection {
+
+namespace {
+constexpr double kDeg = 3.14159265358979323846 / 180.0;
+}
+
+EdgeAligner::EdgeAligner(const model::Model& model, const geometry::PinholeCamera& cam, const DetectorParams& p)
+    : cam_(cam),
+      p_(p.verify),
+      min_sobel2_(64.0 * p.verify.min_gradient * p.verify.min_gradient),
+      cos_match_(std::cos(p.verify.match_angle_deg * kDeg)),
+      cos_search_(std::cos(std::min(80.0, 1.5 * p.verify.match_angle_deg) * kDeg)),
+      projector_(model, p.templates.crease_angle_deg * kDeg),
+      samples_(static_cast<std::size_t>(std::max(16, p.verify.max_samples))) {}
+
+double EdgeAligner::search(const GradientPyramid& g, const Eigen::Vector2d& px, const Eigen::Vector2d& n,
+                           double range) const {
+  const int w = g.width(), h = g.height();
+  double best = 0.0, best_t = std::numeric_limits<double>::quiet_NaN();
+  const int steps = static_cast<int>(range);
+  for (int k = -steps; k <= steps; ++k) {
+    const int x = static_cast<int>(std::lround(px.x() + k * n.x()));
+    const int y = static_cast<int>(std::lround(px.y() + k * n.y()));
+    if (x < 1 || y < 1 || x >= w - 1 || y >= h - 1) continue;
+    const double gx = g.gx(x, y), gy = g.gy(x, y);
+    const double m2 = gx * gx + gy * gy;
+    if (m2 < min_sobel2_) continue;
+    const double dot = std::abs(gx * n.x() + gy * n.y());
+    if (dot * dot < cos_search_ * cos_search_ * m2) continue;
+    // The strongest aligned gradient, nearer ones preferred a little.
+    const double s = dot * (1.0 - 0.5 * std::abs(k) / (steps + 1.0));
+    if (s > best) {
+      best = s;
+      best_t = k;
+    }
+  }
+  return best_t;
+}
+
+double EdgeAligner::loose_share(const GradientPyramid& g, const geometry::SE3& T, double range) {
+  const std::size_t n = projector_.sample(T, cam_, p_.sample_spacing_px, samples_);
+  if (n < 12) return 0.0;
+  int hit = 0;
+  for (std::size_t i = 0; i < n; ++i)
+    if (!std::isnan(search(g, samples_[i].px, samples_[i].normal, range))) ++hit;
+  return static_cast<double>(hit) / static_cast<double>(n);
+}
+
+int EdgeAligner::refine(const GradientPyramid& g, geometry::SE3& T) {
+  int moved = 0;
+  if (p_.depth_scan_steps > 0) {
+    // Scale is what a template grid samples most coarsely: scan the distance first.
+    const geometry::SE3 T0 = T;
+    double best = loose_share(g, T0, 2.0 * p_.match_distance_px);
+    for (int k = -p_.depth_scan_steps; k <= p_.depth_scan_steps; ++k) {
+      if (k == 0) continue;
+      geometry::SE3 Tk = T0;
+      Tk.set_translation(T0.translation() * (1.0 + k * p_.depth_scan_step));
+      const double s = loose_share(g, Tk, 2.0 * p_.match_distance_px);
+      if (s > best) {
+        best = s;
+        T = Tk;
+      }
+    }
+  }
+  const int iters = p_.refine_iterations;
+  for (int it = 0; it < iters; ++it) {
+    // Search range: full for the first third, then shrinking to 2 match distances.
+    const double f = iters <= 1 ? 0.0 : static_cast<double>(it) / (iters - 1);
+    const double range = std::max(2.0 * p_.match_distance_px, p_.refine_search_px * (f < 0.34 ? 1.0 : (1.0 - f) * 1.5));
+    const std::size_t n = projector_.sample(T, cam_, p_.sample_spacing_px, samples_);
+    if (n < 12) break;
+    geometry::Matrix6d H = geometry::Matrix6d::Zero();
+    geometry::Vector6d b = geometry::Vector6d::Zero();
+    int used = 0;
+    const double huber = 1.5;
+    for (std::size_t i = 0; i < n; ++i) {
+      const EdgeSample& s = samples_[i];
+      const double t = search(g, s.px, s.normal, range);
+      if (std::isnan(t)) continue;
+      const Eigen::Vector3d Xc = T * s.p_obj;
+      const double z = Xc.z();
+      if (z <= 1e-6) continue;
+      Eigen::Matrix<double, 2, 3> Jp;
+      Jp << cam_.fx / z, 0.0, -cam_.fx * Xc.x() / (z * z), 0.0, cam_.fy / z, -cam_.fy * Xc.y() / (z * z);
+      const Eigen::RowVector3d nJ = s.normal.transpose() * Jp;
+      geometry::Vector6d J;
+      J.head<3>() = nJ.transpose();
+      J.tail<3>() = (-(nJ * geometry::hat(Xc))).transpose();
+      const double r = -t;  // residual: projected point minus the matched edge, along n
+      const double w = std::abs(r) <= huber ? 1.0 : huber / std::abs(r);
+      H.noalias() += w * J * J.transpose();
+      b.noalias() += w * r * J;
+      ++used;
+    }
+    if (used < 12) break;
+    H.diagonal() *= 1.0 + 1e-3;
+    H.diagonal().array() += 1e-9;
+    const geometry::Vector6d delta = H.ldlt().solve(-b);
+    if (!delta.allFinite()) break;
+    T = geometry::SE3::exp(delta) * T;
+    ++moved;
+    if (delta.head<3>().norm() < 1e-6 && delta.tail<3>().norm() < 1e-6 && range <= 2.0 * p_.match_distance_px) break;
+  }
+  return moved;
+}
+
+Verification EdgeAligner::verify(const GradientPyramid& g, const geometry::SE3& T) {
+  Verification v;
+  const std::size_t n = projector_.sample(T, cam_, p_.sample_spacing_px, samples_);
+  v.samples = static_cast<int>(n);
+  if (v.samples < p_.min_samples) return v;
+  const int w = g.width(), h = g.height();
+  const int steps = static_cast<int>(std::ceil(p_.match_distance_px * 2.0));
+  // A run: consecutive matches along one edge piece with one polarity (the same side brighter).
+  // A piece shorter than min_run samples counts when all of it matches with one polarity.
+  int run = 0, run_sign = 0, piece_samples = 0;
+  bool piece_broken = false;
+  std::uint32_t run_piece = n > 0 ? samples_[0].piece : 0;
+  const auto close_run = [&](bool piece_end) {
+    if (run >= p_.min_run || (p_.short_pieces && piece_end && !piece_broken && run == piece_samples && run > 0)) v.in_runs += run;
+    if (!piece_end && run > 0) piece_broken = true;
+    run = 0;
+  };
+  for (std::size_t i = 0; i < n; ++i) {
+    const EdgeSample& s = samples_[i];
+    int sign = 0;
+    double best = 0.0;
+    for (int k = -steps; k <= steps; ++k) {
+      const double t = 0.5 * k;
+      if (std::abs(t) > p_.match_distance_px) continue;
+      const int x = static_cast<int>(std::lround(s.px.x() + t * s.normal.x()));
+      const int y = static_cast<int>(std::lround(s.px.y() + t * s.normal.y()));
+      if (x < 1 || y < 1 || x >= w - 1 || y >= h - 1) continue;
+      const double gx = g.gx(x, y), gy = g.gy(x, y);
+      const double m2 = gx * gx + gy * gy;
+      if (m2 < min_sobel2_) continue;
+      const double dot = gx * s.normal.x() + gy * s.normal.y();
+      if (dot * dot < cos_match_ * cos_match_ * m2 || std::abs(dot) <= best) continue;
+      // An edge rather than the slope of a ramp: the gradient along the normal does not grow by
+      // more than detect.verify.peak_tolerance one pixel further either way (shading and texture
+      // ramps would otherwise match any nearby pose).
+      bool peak = true;
+      for (const int d : {-1, 1}) {
+        const int xn = static_cast<int>(std::lround(s.px.x() + (t + d) * s.normal.x()));
+        const int yn = static_cast<int>(std::lround(s.px.y() + (t + d) * s.normal.y()));
+        if (xn < 1 || yn < 1 || xn >= w - 1 || yn >= h - 1) continue;
+        const double next = std::abs(g.gx(xn, yn) * s.normal.x() + g.gy(xn, yn) * s.normal.y());
+        if (next > p_.peak_tolerance * std::abs(dot)) peak = false;
+      }
+      if (!peak) continue;
+      best = std::abs(dot);
+      sign = dot > 0 ? 1 : -1;
+    }
+    const bool ok = sign != 0;
+    if (s.piece != run_piece) {
+      close_run(true);
+      piece_samples = 0;
+      piece_broken = false;
+    } else if (!ok || (run > 0 && sign != run_sign)) {
+      close_run(false);
+      if (!ok) piece_broken = true;
+    }
+    run_piece = s.piece;
+    ++piece_samples;
+    if (ok) {
+      ++run;
+      run_sign = sign;
+    }
+    v.matched += ok ? 1 : 0;
+  }
+  close_run(true);
+  v.match_share = static_cast<double>(v.matched) / v.samples;
+  v.score = static_cast<double>(v.in_runs) / v.samples;
+  return v;
+}
+
+}  // namespace v4r::detection

@@ -1,0 +1,234 @@
+// v4r - robust model-based object tracking. MIT licence.
+#include "v4r/detection/edge_projection.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace v4r::detection {
+
+namespace {
+
+bool inside_polygon(const Eigen::Vector2d& q, const Eigen::Vector2d* poly, std::uint32_t n) {
+  bool in = false;
+  for (std::uint32_t i = 0, j = n - 1; i < n; j = i++) {
+    const Eigen::Vector2d& a = poly[i];
+    const Eigen::Vector2d& b = poly[j];
+    if ((a.y() > q.y()) != (b.y() > q.y())) {
+      const double x = a.x() + (q.y() - a.y()) * (b.x() - a.x()) / (b.y() - a.y());
+      if (q.x() < x) in = !in;
+    }
+  }
+  return in;
+}
+
+}  // namespace
+
+EdgeProjector::EdgeProjector(const model::Model& model, double crease_angle)
+    : model_(model), cos_crease_(std::cos(crease_angle)) {
+  faces_.resize(model.faces().size());
+  std::size_t nv = 0;
+  for (const auto& f : model.faces()) nv += f.loop.size();
+  poly_.resize(nv);
+  cyls_.resize(model.cylinders().size());
+  // Worst case: every line, every arc and two limbs per cylinder.
+  pieces_.reserve(model.lines().size() + model.arcs().size() + 2 * model.cylinders().size());
+  piece_len_.reserve(pieces_.capacity());
+}
+
+void EdgeProjector::prepare(const geometry::SE3& T, const geometry::PinholeCamera& cam) {
+  const auto& faces = model_.faces();
+  const auto& J = model_.junctions();
+  const Eigen::Matrix3d R = T.rotation();
+  const Eigen::Vector3d cam_obj = -(R.transpose() * T.translation());
+  std::uint32_t cursor = 0;
+  for (std::size_t fi = 0; fi < faces.size(); ++fi) {
+    const model::Face& f = faces[fi];
+    FaceCache& c = faces_[fi];
+    c.first = cursor;
+    c.count = static_cast<std::uint32_t>(f.loop.size());
+    cursor += c.count;
+    const Eigen::Vector3d p0 = J[f.loop[0]].p;
+    c.front = f.normal.dot(cam_obj - p0) > 0.0;
+    c.n_cam = R * f.normal;
+    c.d = c.n_cam.dot(T * p0);
+    c.lo = Eigen::Vector2d::Constant(1e300);
+    c.hi = Eigen::Vector2d::Constant(-1e300);
+    bool ok = c.front;
+    for (std::uint32_t k = 0; k < c.count && ok; ++k) {
+      const Eigen::Vector3d pc = T * J[f.loop[k]].p;
+      if (pc.z() <= 1e-6) {
+        ok = false;
+        break;
+      }
+      const Eigen::Vector2d q(pc.x() / pc.z(), pc.y() / pc.z());
+      poly_[c.first + k] = q;
+      c.lo = c.lo.cwiseMin(q);
+      c.hi = c.hi.cwiseMax(q);
+    }
+    c.front = ok;
+  }
+  for (std::size_t ci = 0; ci < cyls_.size(); ++ci) {
+    const model::Cylinder& m = model_.cylinders()[ci];
+    CylCache& c = cyls_[ci];
+    c.p1 = T * m.p1;
+    const Eigen::Vector3d p2 = T * m.p2;
+    c.length = (p2 - c.p1).norm();
+    c.axis = c.length > 0 ? Eigen::Vector3d((p2 - c.p1) / c.length) : Eigen::Vector3d::UnitZ();
+    c.radius = m.radius;
+  }
+  // The pieces to sample (object frame).
+  pieces_.clear();
+  const auto& lines = model_.lines();
+  for (std::size_t li = 0; li < lines.size(); ++li) {
+    const model::LineEdge& e = lines[li];
+    const bool hl = e.face_left != model::kNone, hr = e.face_right != model::kNone;
+    if (hl || hr) {
+      const bool vl = hl && faces_[e.face_left].front, vr = hr && faces_[e.face_right].front;
+      if (!vl && !vr) continue;
+      if (hl && hr && vl && vr && faces[e.face_left].normal.dot(faces[e.face_right].normal) > cos_crease_) continue;
+    }
+    Piece p;
+    p.a = J[e.a].p;
+    p.b = J[e.b].p;
+    p.face_a = e.face_left;
+    p.face_b = e.face_right;
+    pieces_.push_back(p);
+  }
+  for (std::size_t ai = 0; ai < model_.arcs().size(); ++ai) {
+    Piece p;
+    p.arc = static_cast<int>(ai);
+    p.face_a = model_.arcs()[ai].face;
+    if (p.face_a != model::kNone && !faces_[p.face_a].front) continue;
+    pieces_.push_back(p);
+  }
+  for (std::size_t ci = 0; ci < model_.cylinders().size(); ++ci) {
+    const model::Cylinder& m = model_.cylinders()[ci];
+    const Eigen::Vector3d d = m.p2 - m.p1;
+    const double len = d.norm();
+    if (len <= 0 || m.radius <= 0) continue;
+    const Eigen::Vector3d a = d / len;
+    Eigen::Vector3d w = (cam_obj - m.p1) - (cam_obj - m.p1).dot(a) * a;
+    const double D = w.norm();
+    if (D <= m.radius * 1.0001) continue;
+    w /= D;
+    const Eigen::Vector3d wp = a.cross(w);
+    const double c = m.radius / D, s = std::sqrt(std::max(0.0, 1.0 - c * c));
+    for (const double sign : {-1.0, 1.0}) {
+      const Eigen::Vector3d n = c * w + sign * s * wp;
+      Piece p;
+      p.a = m.p1 + m.radius * n;
+      p.b = m.p2 + m.radius * n;
+      p.cylinder = static_cast<int>(ci);
+      pieces_.push_back(p);
+    }
+  }
+}
+
+Eigen::Vector3d EdgeProjector::piece_point(const Piece& pc, double s) const {
+  if (pc.arc < 0) return pc.a + s * (pc.b - pc.a);
+  const model::CircleArc& a = model_.arcs()[pc.arc];
+  const double th = a.start + s * (a.end - a.start);
+  const Eigen::Vector3d y = a.normal.cross(a.x_axis);
+  return a.center + a.radius * (std::cos(th) * a.x_axis + std::sin(th) * y);
+}
+
+bool EdgeProjector::hidden(const Eigen::Vector3d& p_cam, model::Index fa, model::Index fb, int own_cylinder) const {
+  if (p_cam.z() <= 1e-6) return true;
+  const Eigen::Vector2d q(p_cam.x() / p_cam.z(), p_cam.y() / p_cam.z());
+  const Eigen::Vector3d ray(q.x(), q.y(), 1.0);
+  for (std::size_t fi = 0; fi < faces_.size(); ++fi) {
+    const FaceCache& f = faces_[fi];
+    if (!f.front || fi == fa || fi == fb) continue;
+    if (q.x() < f.lo.x() || q.y() < f.lo.y() || q.x() > f.hi.x() || q.y() > f.hi.y()) continue;
+    const double den = f.n_cam.dot(ray);
+    if (std::abs(den) < 1e-12) continue;
+    const double z = f.d / den;
+    if (z <= 0.0 || z >= p_cam.z() * (1.0 - 1e-4) - 1e-5) continue;
+    if (inside_polygon(q, poly_.data() + f.first, f.count)) return true;
+  }
+  const double tp = p_cam.norm();
+  const Eigen::Vector3d d = p_cam / tp;
+  const double t_max = tp * (1.0 - 1e-3) - 1e-5;
+  for (std::size_t ci = 0; ci < cyls_.size(); ++ci) {
+    if (static_cast<int>(ci) == own_cylinder) continue;
+    const CylCache& c = cyls_[ci];
+    const Eigen::Vector3d dp = d - d.dot(c.axis) * c.axis;
+    const Eigen::Vector3d op = -c.p1 - (-c.p1).dot(c.axis) * c.axis;
+    const double A = dp.squaredNorm(), B = 2.0 * dp.dot(op), C = op.squaredNorm() - c.radius * c.radius;
+    if (A > 1e-12) {
+      const double disc = B * B - 4.0 * A * C;
+      if (disc > 0.0) {
+        const double sq = std::sqrt(disc);
+        for (const double t : {(-B - sq) / (2.0 * A), (-B + sq) / (2.0 * A)}) {
+          if (t <= 0.0 || t >= t_max) continue;
+          const double h = (t * d - c.p1).dot(c.axis);
+          if (h >= 0.0 && h <= c.length) return true;
+        }
+      }
+    }
+    const double den = d.dot(c.axis);
+    if (std::abs(den) > 1e-12) {
+      for (const double h : {0.0, c.length}) {
+        const Eigen::Vector3d centre = c.p1 + h * c.axis;
+        const double t = centre.dot(c.axis) / den;
+        if (t <= 0.0 || t >= t_max) continue;
+        if ((t * d - centre).squaredNorm() < c.radius * c.radius * (1.0 - 1e-3)) return true;
+      }
+    }
+  }
+  return false;
+}
+
+std::size_t EdgeProjector::sample(const geometry::SE3& T, const geometry::PinholeCamera& cam, double spacing_px,
+                                  std::span<EdgeSample> out, double margin_px) {
+  if (out.empty()) return 0;
+  prepare(T, cam);
+  // Projected length of every piece (polyline of 16 segments), to share the samples out.
+  piece_len_.clear();
+  double total = 0.0;
+  for (const Piece& pc : pieces_) {
+    double len = 0.0;
+    Eigen::Vector3d prev = T * piece_point(pc, 0.0);
+    const int n = pc.arc < 0 ? 1 : 16;
+    for (int k = 1; k <= n; ++k) {
+      const Eigen::Vector3d cur = T * piece_point(pc, static_cast<double>(k) / n);
+      if (prev.z() > 1e-6 && cur.z() > 1e-6) len += (cam.project(cur) - cam.project(prev)).norm();
+      prev = cur;
+    }
+    piece_len_.push_back(len);
+    total += len;
+  }
+  if (total <= 0.0) return 0;
+  const double spacing = std::max(spacing_px, total / static_cast<double>(out.size()) * 1.0001);
+  const bool bounds = margin_px >= 0.0;
+  std::size_t count = 0;
+  for (std::size_t pi = 0; pi < pieces_.size() && count < out.size(); ++pi) {
+    const Piece& pc = pieces_[pi];
+    const int n = static_cast<int>(piece_len_[pi] / spacing);
+    for (int k = 0; k < n && count < out.size(); ++k) {
+      const double s = (k + 0.5) / n;
+      const Eigen::Vector3d X = piece_point(pc, s);
+      const Eigen::Vector3d Xc = T * X;
+      if (Xc.z() <= 1e-6) continue;
+      const Eigen::Vector2d px = cam.project(Xc);
+      if (bounds && !cam.in_image(px, margin_px)) continue;
+      if (hidden(Xc, pc.face_a, pc.face_b, pc.cylinder)) continue;
+      // Tangent of the projected curve by a small step along it.
+      const double ds = 0.25 / std::max(1, n);
+      const Eigen::Vector3d Xa = T * piece_point(pc, s - ds), Xb = T * piece_point(pc, s + ds);
+      if (Xa.z() <= 1e-6 || Xb.z() <= 1e-6) continue;
+      Eigen::Vector2d tan = cam.project(Xb) - cam.project(Xa);
+      const double tl = tan.norm();
+      if (!(tl > 1e-9)) continue;
+      tan /= tl;
+      EdgeSample& e = out[count++];
+      e.p_obj = X;
+      e.px = px;
+      e.normal = Eigen::Vector2d(-tan.y(), tan.x());
+      e.piece = static_cast<std::uint32_t>(pi);
+    }
+  }
+  return count;
+}
+
+}  // namespace v4r::detection

@@ -1,0 +1,211 @@
+// v4r - robust model-based object tracking. MIT licence.
+#include "v4r/detection/gradient_pyramid.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace v4r::detection {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+/// Sobel gradient of an interleaved image with `ch` channels, the channel of largest magnitude
+/// per pixel; border pixels get 0.
+void sobel_max(const std::uint8_t* data, int stride, int ch, int w, int h, std::int16_t* gx, std::int16_t* gy) {
+  for (int x = 0; x < w; ++x) {
+    gx[x] = gy[x] = 0;
+    gx[static_cast<std::size_t>(h - 1) * w + x] = gy[static_cast<std::size_t>(h - 1) * w + x] = 0;
+  }
+  for (int y = 1; y + 1 < h; ++y) {
+    const std::uint8_t* r0 = data + static_cast<long>(y - 1) * stride;
+    const std::uint8_t* r1 = r0 + stride;
+    const std::uint8_t* r2 = r1 + stride;
+    std::int16_t* ox = gx + static_cast<std::size_t>(y) * w;
+    std::int16_t* oy = gy + static_cast<std::size_t>(y) * w;
+    ox[0] = oy[0] = ox[w - 1] = oy[w - 1] = 0;
+    if (ch == 1) {
+      for (int x = 1; x + 1 < w; ++x) {
+        ox[x] = static_cast<std::int16_t>((r0[x + 1] - r0[x - 1]) + 2 * (r1[x + 1] - r1[x - 1]) + (r2[x + 1] - r2[x - 1]));
+        oy[x] = static_cast<std::int16_t>((r2[x - 1] - r0[x - 1]) + 2 * (r2[x] - r0[x]) + (r2[x + 1] - r0[x + 1]));
+      }
+    } else {
+      for (int x = 1; x + 1 < w; ++x) {
+        int best = -1, bx = 0, by = 0;
+        for (int c = 0; c < ch; ++c) {
+          const int l = (x - 1) * ch + c, m = x * ch + c, r = (x + 1) * ch + c;
+          const int dx = (r0[r] - r0[l]) + 2 * (r1[r] - r1[l]) + (r2[r] - r2[l]);
+          const int dy = (r2[l] - r0[l]) + 2 * (r2[m] - r0[m]) + (r2[r] - r0[r]);
+          const int m2 = dx * dx + dy * dy;
+          if (m2 > best) {
+            best = m2;
+            bx = dx;
+            by = dy;
+          }
+        }
+        ox[x] = static_cast<std::int16_t>(bx);
+        oy[x] = static_cast<std::int16_t>(by);
+      }
+    }
+  }
+}
+
+/// 2x2 mean of an interleaved image into a dense one of size (w/2) x (h/2).
+void halve(const std::uint8_t* src, int stride, int ch, int w2, int h2, std::uint8_t* dst) {
+  for (int y = 0; y < h2; ++y) {
+    const std::uint8_t* a = src + static_cast<long>(2 * y) * stride;
+    const std::uint8_t* b = a + stride;
+    std::uint8_t* o = dst + static_cast<std::size_t>(y) * w2 * ch;
+    for (int x = 0; x < w2; ++x)
+      for (int c = 0; c < ch; ++c) {
+        const int i = 2 * x * ch + c;
+        o[x * ch + c] = static_cast<std::uint8_t>((a[i] + a[i + ch] + b[i] + b[i + ch] + 2) >> 2);
+      }
+  }
+}
+
+void allocate(OrientationLevel& l, int w, int h, int spread, bool linear) {
+  l.width = w;
+  l.height = h;
+  l.spread = spread;
+  const std::size_t n = static_cast<std::size_t>(w) * h;
+  l.image.assign(n * 3, 0);
+  l.bits.assign(n, 0);
+  l.spread_bits.assign(n, 0);
+  for (auto& r : l.response) r.assign(n, 0);
+  l.lin_width = (w + 1) / 2;
+  l.lin_height = (h + 1) / 2;
+  if (linear)
+    for (auto& o : l.linear)
+      for (auto& ph : o) ph.assign(static_cast<std::size_t>(l.lin_width) * l.lin_height, 0);
+}
+
+/// lut[o][mask]: best similarity of orientation o to the orientations set in mask.
+struct SimilarityLut {
+  std::uint8_t v[kOrientations][256];
+  SimilarityLut() {
+    for (int o = 0; o < kOrientations; ++o)
+      for (int m = 0; m < 256; ++m) {
+        int best = 0;
+        for (int b = 0; b < kOrientations; ++b)
+          if (m & (1 << b)) best = std::max(best, orientation_similarity(o, b));
+        v[o][m] = static_cast<std::uint8_t>(best);
+      }
+  }
+};
+const SimilarityLut& lut() {
+  static const SimilarityLut l;
+  return l;
+}
+
+}  // namespace
+
+int quantise_orientation(double x, double y) {
+  double a = std::atan2(y, x);
+  if (a < 0) a += kPi;
+  int b = static_cast<int>(a * (kOrientations / kPi));
+  if (b >= kOrientations) b -= kOrientations;
+  return b < 0 ? 0 : b;
+}
+
+int orientation_similarity(int a, int b) {
+  int d = std::abs(a - b);
+  d = std::min(d, kOrientations - d);
+  return d == 0 ? 4 : (d == 1 ? 1 : 0);
+}
+
+GradientPyramid::GradientPyramid(int width, int height, int fine_spread, int coarse_spread)
+    : width_(std::max(width, 8)), height_(std::max(height, 8)) {
+  const std::size_t n = static_cast<std::size_t>(width_) * height_;
+  gx_.assign(n, 0);
+  gy_.assign(n, 0);
+  lgx_.assign(n / 4 + 1, 0);
+  lgy_.assign(n / 4 + 1, 0);
+  allocate(fine_, width_ / 2, height_ / 2, fine_spread, false);
+  allocate(coarse_, width_ / 4, height_ / 4, coarse_spread, true);
+}
+
+bool GradientPyramid::compute(const image::ImageView& grey, double min_gradient) {
+  if (grey.empty() || grey.width != width_ || grey.height != height_) return false;
+  return compute_from(grey.data, grey.stride, 1, min_gradient);
+}
+
+bool GradientPyramid::compute(const image::ColourView& bgr, double min_gradient) {
+  if (bgr.empty() || bgr.width != width_ || bgr.height != height_) return false;
+  return compute_from(bgr.data, bgr.stride, 3, min_gradient);
+}
+
+bool GradientPyramid::compute_from(const std::uint8_t* data, int stride, int ch, double min_gradient) {
+  sobel_max(data, stride, ch, width_, height_, gx_.data(), gy_.data());
+  halve(data, stride, ch, fine_.width, fine_.height, fine_.image.data());
+  halve(fine_.image.data(), fine_.width * ch, ch, coarse_.width, coarse_.height, coarse_.image.data());
+  orientations(fine_, ch, min_gradient, false);
+  orientations(coarse_, ch, min_gradient, true);
+  return true;
+}
+
+void GradientPyramid::orientations(OrientationLevel& l, int ch, double min_gradient, bool linear) {
+  const int w = l.width, h = l.height;
+  sobel_max(l.image.data(), w * ch, ch, w, h, lgx_.data(), lgy_.data());
+  // Sobel is 8x the gradient per pixel.
+  const double t = 8.0 * min_gradient;
+  const std::int64_t t2 = static_cast<std::int64_t>(t * t);
+  // Orientation boundaries: bin k covers angles [k, k+1) * pi / 8 in the upper half plane.
+  for (std::size_t i = 0, n = static_cast<std::size_t>(w) * h; i < n; ++i) {
+    int dx = lgx_[i], dy = lgy_[i];
+    const std::int64_t m2 = static_cast<std::int64_t>(dx) * dx + static_cast<std::int64_t>(dy) * dy;
+    if (m2 <= t2 || m2 == 0) {
+      l.bits[i] = 0;
+      continue;
+    }
+    l.bits[i] = static_cast<std::uint8_t>(1u << quantise_orientation(dx, dy));
+  }
+  // Spread: OR over (2r+1)^2, separably (rows into spread_bits, then columns in place via a row).
+  const int r = l.spread;
+  for (int y = 0; y < h; ++y) {
+    const std::uint8_t* src = l.bits.data() + static_cast<std::size_t>(y) * w;
+    std::uint8_t* dst = l.spread_bits.data() + static_cast<std::size_t>(y) * w;
+    for (int x = 0; x < w; ++x) {
+      std::uint8_t m = 0;
+      for (int k = std::max(0, x - r); k <= std::min(w - 1, x + r); ++k) m |= src[k];
+      dst[x] = m;
+    }
+  }
+  // Columns: write into bits (no longer needed) and swap roles by copying back.
+  for (int y = 0; y < h; ++y) {
+    std::uint8_t* dst = l.bits.data() + static_cast<std::size_t>(y) * w;
+    const int y0 = std::max(0, y - r), y1 = std::min(h - 1, y + r);
+    for (int x = 0; x < w; ++x) dst[x] = 0;
+    for (int yy = y0; yy <= y1; ++yy) {
+      const std::uint8_t* src = l.spread_bits.data() + static_cast<std::size_t>(yy) * w;
+      for (int x = 0; x < w; ++x) dst[x] |= src[x];
+    }
+  }
+  std::copy(l.bits.begin(), l.bits.end(), l.spread_bits.begin());
+  const SimilarityLut& L = lut();
+  for (int o = 0; o < kOrientations; ++o) {
+    std::uint8_t* resp = l.response[o].data();
+    const std::uint8_t* tab = L.v[o];
+    for (std::size_t i = 0, n = static_cast<std::size_t>(w) * h; i < n; ++i) resp[i] = tab[l.spread_bits[i]];
+    if (!linear) continue;
+    for (int py = 0; py < 2; ++py)
+      for (int px = 0; px < 2; ++px) {
+        std::uint8_t* lin = l.linear[o][py * 2 + px].data();
+        for (int j = 0; j < l.lin_height; ++j) {
+          const int y = 2 * j + py;
+          std::uint8_t* row = lin + static_cast<std::size_t>(j) * l.lin_width;
+          if (y >= h) {
+            std::fill(row, row + l.lin_width, 0);
+            continue;
+          }
+          const std::uint8_t* src = resp + static_cast<std::size_t>(y) * w;
+          for (int i = 0; i < l.lin_width; ++i) {
+            const int x = 2 * i + px;
+            row[i] = x < w ? src[x] : 0;
+          }
+        }
+      }
+  }
+}
+
+}  // namespace v4r::detection

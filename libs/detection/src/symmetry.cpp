@@ -1,0 +1,74 @@
+// v4r - robust model-based object tracking. MIT licence.
+#include "v4r/detection/symmetry.hpp"
+
+#include <cmath>
+#include <limits>
+
+namespace v4r::detection {
+
+namespace {
+
+bool has_point(const std::vector<Eigen::Vector3d>& pts, const Eigen::Vector3d& q, double tol) {
+  for (const auto& p : pts)
+    if ((p - q).norm() <= tol) return true;
+  return false;
+}
+
+}  // namespace
+
+std::vector<geometry::SE3> model_symmetries(const model::Model& model, double tol) {
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::max());
+  Eigen::Vector3d hi = -lo;
+  for (const auto& j : model.junctions()) {
+    lo = lo.cwiseMin(j.p);
+    hi = hi.cwiseMax(j.p);
+  }
+  const Eigen::Vector3d c = model.junctions().empty() ? Eigen::Vector3d::Zero() : Eigen::Vector3d(0.5 * (lo + hi));
+  // Junctions, edge mid-points and arc centres stand for the features; cylinders by their axis ends.
+  std::vector<Eigen::Vector3d> pts, mids, arcs;
+  for (const auto& j : model.junctions()) pts.push_back(j.p);
+  for (std::size_t i = 0; i < model.lines().size(); ++i)
+    mids.push_back(0.5 * (model.line_point_a(static_cast<model::Index>(i)) + model.line_point_b(static_cast<model::Index>(i))));
+  for (const auto& a : model.arcs()) arcs.push_back(a.center);
+  std::vector<geometry::SE3> out;
+  // The 24 signed permutation matrices with determinant +1.
+  const int perms[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
+  for (const auto& pm : perms)
+    for (int s = 0; s < 8; ++s) {
+      Eigen::Matrix3d R = Eigen::Matrix3d::Zero();
+      for (int r = 0; r < 3; ++r) R(r, pm[r]) = (s >> r) & 1 ? -1.0 : 1.0;
+      if (R.determinant() < 0) continue;
+      const auto map = [&](const Eigen::Vector3d& p) -> Eigen::Vector3d { return R * (p - c) + c; };
+      bool ok = true;
+      for (const auto& p : pts) ok = ok && has_point(pts, map(p), tol);
+      for (const auto& p : mids) ok = ok && has_point(mids, map(p), tol);
+      for (const auto& p : arcs) ok = ok && has_point(arcs, map(p), tol);
+      for (std::size_t i = 0; i < model.cylinders().size() && ok; ++i) {
+        const auto& y = model.cylinders()[i];
+        bool found = false;
+        for (const auto& z : model.cylinders()) {
+          const bool same = ((map(y.p1) - z.p1).norm() <= tol && (map(y.p2) - z.p2).norm() <= tol) ||
+                            ((map(y.p1) - z.p2).norm() <= tol && (map(y.p2) - z.p1).norm() <= tol);
+          found = found || (same && std::abs(y.radius - z.radius) <= tol);
+        }
+        ok = found;
+      }
+      if (ok) out.emplace_back(R, c - R * c);
+    }
+  return out;
+}
+
+PoseError symmetric_pose_error(const geometry::SE3& estimate, const geometry::SE3& truth,
+                               const std::vector<geometry::SE3>& symmetries) {
+  PoseError best{std::numeric_limits<double>::max(), std::numeric_limits<double>::max()};
+  const auto consider = [&](const geometry::SE3& t) {
+    PoseError e{(estimate.translation() - t.translation()).norm(), geometry::rotation_angle_between(estimate, t)};
+    // Ordered by rotation first, then translation (an equivalent pose is both close).
+    if (e.rotation + 10.0 * e.translation < best.rotation + 10.0 * best.translation) best = e;
+  };
+  consider(truth);
+  for (const auto& S : symmetries) consider(truth * S);
+  return best;
+}
+
+}  // namespace v4r::detection

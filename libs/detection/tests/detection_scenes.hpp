@@ -1,0 +1,118 @@
+// v4r - robust model-based object tracking. MIT licence.
+// Test scenes for the detector (shared by the unit tests and bench/detection_eval.cpp): random
+// poses over a view range, rendered with the synth renderer under a named condition, and
+// object-free images (clutter backgrounds, real photos).
+#pragma once
+
+#include <cmath>
+#include <random>
+#include <string>
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "v4r/detection/detector_params.hpp"
+#include "v4r/detection/template_set.hpp"
+#include "v4r/geometry/look_at.hpp"
+#include "v4r/synth/conditions.hpp"
+#include "v4r/synth/renderer.hpp"
+
+namespace v4r::detection::scenes {
+
+/// Scene conditions of the detection tests.
+enum class Scene { kPlain, kTextured, kClutter, kNoise, kBlur, kOcclusion };
+inline const char* scene_name(Scene s) {
+  switch (s) {
+    case Scene::kPlain: return "plain";
+    case Scene::kTextured: return "textured";
+    case Scene::kClutter: return "clutter";
+    case Scene::kNoise: return "noise";
+    case Scene::kBlur: return "blur";
+    case Scene::kOcclusion: return "occlusion30";
+  }
+  return "?";
+}
+
+/// A random pose in the view range `v` (automatic distances resolved for `m` and `cam`; shrunk by `inset` of each span so that the truth is not on
+/// the border of the sampled range) with the model's centre at a random pixel that keeps the
+/// model's bounding sphere `margin_px` inside the image.
+inline geometry::SE3 random_pose(const model::Model& m, const ViewRange& v, const geometry::PinholeCamera& cam,
+                                 std::mt19937& rng, double inset = 0.05, double margin_px = 10.0) {
+  constexpr double kDeg = 3.14159265358979323846 / 180.0;
+  const auto uni = [&](double lo, double hi) {
+    const double d = (hi - lo) * inset;
+    return std::uniform_real_distribution<double>(lo + d, std::max(lo + d, hi - d))(rng);
+  };
+  const double el = uni(v.elevation_min_deg, v.elevation_max_deg) * kDeg;
+  const double az = uni(v.azimuth_min_deg, v.azimuth_max_deg) * kDeg;
+  const double ip = uni(v.inplane_min_deg, v.inplane_max_deg) * kDeg;
+  const ModelExtent ext = model_extent(m);
+  const ViewRange rv = resolve_view_range(v, ext.radius, cam.focal());
+  const double dist = std::exp(uni(std::log(rv.distance_min_m), std::log(rv.distance_max_m)));
+  const Eigen::Vector3d c = ext.centre;
+  const double r = ext.radius;
+  const geometry::SE3 T0 = geometry::SE3::from_rvec(Eigen::Vector3d::Zero(), Eigen::Vector3d(0, 0, ip)) *
+                           geometry::look_at(dist, az, el, c);
+  const double rpx = cam.focal() * r / dist + margin_px;
+  const double u = std::uniform_real_distribution<double>(std::min(rpx, cam.width / 2.0), std::max(cam.width - rpx, cam.width / 2.0))(rng);
+  const double w = std::uniform_real_distribution<double>(std::min(rpx, cam.height / 2.0), std::max(cam.height - rpx, cam.height / 2.0))(rng);
+  const Eigen::Vector3d ray = Eigen::Vector3d((u - cam.cx) / cam.fx, (w - cam.cy) / cam.fy, 1.0).normalized();
+  return geometry::SE3(Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), ray), Eigen::Vector3d::Zero()) * T0;
+}
+
+/// Renders `m` at `T` under scene condition `s` (colour, 640x480 for the default camera);
+/// kOcclusion covers 30 % of the object's area with the renderer's occluder.
+inline cv::Mat render_scene(const model::Model& m, const geometry::SE3& T, const geometry::PinholeCamera& cam, Scene s,
+                            std::uint32_t seed) {
+  synth::RenderOptions ro;
+  ro.seed = seed;
+  ro.cycle_frames = 2;
+  switch (s) {
+    case Scene::kPlain: ro.textured_background = false; break;
+    case Scene::kTextured: break;
+    case Scene::kClutter: ro = synth::options_for(synth::Condition::kClutter, ro); break;
+    case Scene::kNoise: ro = synth::options_for(synth::Condition::kNoise, ro); break;
+    case Scene::kBlur: ro = synth::options_for(synth::Condition::kBlur, ro); break;
+    case Scene::kOcclusion:
+      ro = synth::options_for(synth::Condition::kOcclusion, ro);
+      ro.occluder.peak_coverage = 0.30;
+      break;
+  }
+  synth::Renderer r(cam, ro);
+  r.set_scene_reference(m, {T, T});
+  if (s == Scene::kBlur) {
+    // Motion over the exposure: 4 mm and 1 degree.
+    const geometry::SE3 prev = geometry::SE3::exp((geometry::Vector6d() << 0.0035, -0.002, 0.0, 0.008, 0.012, 0.006).finished()) * T;
+    return r.render(m, T, 1, &prev);
+  }
+  return r.render(m, T, s == Scene::kOcclusion ? 1 : 0);
+}
+
+/// An object-free image: the cluttered background of the renderer (with sensor noise) for
+/// `kind` 0, else a 640x480 crop (at a random place, after a random scale 0.6..1) of a real photo
+/// at `photo_path`. Empty when the photo cannot be read.
+inline cv::Mat empty_scene(const geometry::PinholeCamera& cam, int kind, const std::string& photo_path, std::mt19937& rng) {
+  if (kind == 0) {
+    synth::RenderOptions ro = synth::options_for(synth::Condition::kClutter);
+    ro.seed = static_cast<std::uint32_t>(rng());
+    synth::Renderer r(cam, ro);
+    cv::Mat noise(r.background().size(), CV_32FC3);
+    cv::randn(noise, cv::Scalar::all(0), cv::Scalar::all(3));
+    cv::Mat out;
+    cv::Mat(r.background() + noise).convertTo(out, CV_8UC3);
+    return out;
+  }
+  cv::Mat img = cv::imread(photo_path, cv::IMREAD_COLOR);
+  if (img.empty()) return {};
+  const double s = std::uniform_real_distribution<double>(0.6, 1.0)(rng);
+  const double need = std::max(static_cast<double>(cam.width) / img.cols, static_cast<double>(cam.height) / img.rows);
+  const double f = std::max(s, need);
+  cv::Mat scaled;
+  cv::resize(img, scaled, cv::Size(), f, f, cv::INTER_AREA);
+  const int x = std::uniform_int_distribution<int>(0, scaled.cols - cam.width)(rng);
+  const int y = std::uniform_int_distribution<int>(0, scaled.rows - cam.height)(rng);
+  return scaled(cv::Rect(x, y, cam.width, cam.height)).clone();
+}
+
+}  // namespace v4r::detection::scenes

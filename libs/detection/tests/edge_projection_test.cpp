@@ -1,0 +1,82 @@
+// v4r - robust model-based object tracking. MIT licence.
+// Edge samples of a projected model: hidden-line removal by faces and cylinders, normals.
+#include <gtest/gtest.h>
+
+#include "v4r/detection/edge_projection.hpp"
+#include "v4r/geometry/look_at.hpp"
+#include "v4r/model/cao_reader.hpp"
+#include "v4r/synth/renderer.hpp"
+
+using namespace v4r;
+using namespace v4r::detection;
+
+namespace {
+model::Model load(const std::string& text) {
+  auto m = model::parse_cao(text, "m");
+  EXPECT_TRUE(m) << m.error().to_string();
+  return std::move(*m);
+}
+}  // namespace
+
+TEST(EdgeProjector, BoxFromAboveHidesTheEdgesOfTheFarBottomCorner) {
+  const model::Model box = load(synth::box_cao());
+  const geometry::PinholeCamera cam = synth::default_camera();
+  // From elevation 40 deg, azimuth 30 deg: the corner (-x, -y, -z) is the one hidden.
+  const geometry::SE3 T = geometry::look_at(0.7, 0.52, 0.7);
+  EdgeProjector proj(box, 0.17);
+  std::vector<EdgeSample> s(1000);
+  const std::size_t n = proj.sample(T, cam, 4.0, s);
+  ASSERT_GT(n, 100u);
+  const Eigen::Vector3d hidden_corner(-0.10, -0.075, -0.05);
+  int on_hidden = 0, on_top = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3d& p = s[i].p_obj;
+    // On one of the three edges through the hidden corner: two of its coordinates equal the corner's.
+    const int same = (std::abs(p.x() - hidden_corner.x()) < 1e-9) + (std::abs(p.y() - hidden_corner.y()) < 1e-9) +
+                     (std::abs(p.z() - hidden_corner.z()) < 1e-9);
+    if (same >= 2) ++on_hidden;
+    if (std::abs(p.z() - 0.05) < 1e-9) ++on_top;
+    EXPECT_NEAR(s[i].normal.norm(), 1.0, 1e-9);
+    EXPECT_TRUE(cam.in_image(s[i].px));
+  }
+  EXPECT_EQ(on_hidden, 0);
+  EXPECT_GT(on_top, n / 4);
+}
+
+TEST(EdgeProjector, NormalsArePerpendicularToTheProjectedEdges) {
+  const model::Model box = load(synth::box_cao());
+  const geometry::PinholeCamera cam = synth::default_camera();
+  const geometry::SE3 T = geometry::look_at(0.7, 0.3, 0.6);
+  EdgeProjector proj(box, 0.17);
+  std::vector<EdgeSample> s(500);
+  const std::size_t n = proj.sample(T, cam, 6.0, s);
+  ASSERT_GT(n, 20u);
+  for (std::size_t i = 0; i + 1 < n; ++i) {
+    if (s[i].piece != s[i + 1].piece) continue;
+    const Eigen::Vector2d d = (s[i + 1].px - s[i].px).normalized();
+    EXPECT_LT(std::abs(d.dot(s[i].normal)), 0.05);  // straight edges, mild distortion
+  }
+}
+
+TEST(EdgeProjector, FlangeShowsCylinderLimbsAndHidesTheBackOfTheBottomRim) {
+  const model::Model flange = load(synth::flange_cao());
+  const geometry::PinholeCamera cam = synth::default_camera();
+  const geometry::SE3 T = geometry::look_at(0.6, 0.4, 0.35);
+  EdgeProjector proj(flange, 0.17);
+  std::vector<EdgeSample> s(2000);
+  const std::size_t n = proj.sample(T, cam, 3.0, s);
+  ASSERT_GT(n, 100u);
+  const Eigen::Vector3d cam_obj = T.inverse().translation();
+  const Eigen::Vector2d towards(cam_obj.x(), cam_obj.y());
+  int limb = 0, rim_back = 0, rim_front = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3d& p = s[i].p_obj;
+    const double r = std::hypot(p.x(), p.y());
+    if (std::abs(r - 0.05) > 1e-6) continue;
+    if (p.z() > 0.005 && p.z() < 0.055) ++limb;  // on the side: a limb line
+    if (std::abs(p.z()) < 1e-9) (Eigen::Vector2d(p.x(), p.y()).dot(towards) < -0.02 ? rim_back : rim_front)++;
+  }
+  EXPECT_GT(limb, 10);
+  EXPECT_GT(rim_front, 5);
+  EXPECT_EQ(rim_back, 0);  // behind the cylinder
+}
