@@ -1,6 +1,8 @@
 // v4r - robust model-based object tracking. MIT licence.
 #include "v4r/detection/edge_projection.hpp"
 
+#include "v4r/geometry/ray_cylinder.hpp"
+
 #include <algorithm>
 #include <cmath>
 
@@ -152,29 +154,8 @@ bool EdgeProjector::hidden(const Eigen::Vector3d& p_cam, model::Index fa, model:
   for (std::size_t ci = 0; ci < cyls_.size(); ++ci) {
     if (static_cast<int>(ci) == own_cylinder) continue;
     const CylCache& c = cyls_[ci];
-    const Eigen::Vector3d dp = d - d.dot(c.axis) * c.axis;
-    const Eigen::Vector3d op = -c.p1 - (-c.p1).dot(c.axis) * c.axis;
-    const double A = dp.squaredNorm(), B = 2.0 * dp.dot(op), C = op.squaredNorm() - c.radius * c.radius;
-    if (A > 1e-12) {
-      const double disc = B * B - 4.0 * A * C;
-      if (disc > 0.0) {
-        const double sq = std::sqrt(disc);
-        for (const double t : {(-B - sq) / (2.0 * A), (-B + sq) / (2.0 * A)}) {
-          if (t <= 0.0 || t >= t_max) continue;
-          const double h = (t * d - c.p1).dot(c.axis);
-          if (h >= 0.0 && h <= c.length) return true;
-        }
-      }
-    }
-    const double den = d.dot(c.axis);
-    if (std::abs(den) > 1e-12) {
-      for (const double h : {0.0, c.length}) {
-        const Eigen::Vector3d centre = c.p1 + h * c.axis;
-        const double t = centre.dot(c.axis) / den;
-        if (t <= 0.0 || t >= t_max) continue;
-        if ((t * d - centre).squaredNorm() < c.radius * c.radius * (1.0 - 1e-3)) return true;
-      }
-    }
+    if (geometry::ray_hits_cylinder(d, t_max, c.p1, c.axis, c.radius, c.length, c.radius * std::sqrt(1.0 - 1e-3)))
+      return true;
   }
   return false;
 }

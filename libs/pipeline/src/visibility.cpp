@@ -1,6 +1,8 @@
 // v4r - robust model-based object tracking. MIT licence.
 #include "v4r/pipeline/visibility.hpp"
 
+#include "v4r/geometry/ray_cylinder.hpp"
+
 #include <cmath>
 
 namespace v4r::pipeline {
@@ -44,31 +46,7 @@ bool VisibilityTester::hidden_by_cylinder(const Eigen::Vector3d& p_cam) const {
   const Eigen::Vector3d d = p_cam / tp;  // line of sight, unit
   const double t_max = tp * (1.0 - 1e-4) - 1e-5;
   for (const CylinderCache& c : cylinders_) {
-    // Side: |(t d - p1) - ((t d - p1).a) a| = r, a quadratic in t.
-    const Eigen::Vector3d dp = d - d.dot(c.axis) * c.axis;
-    const Eigen::Vector3d op = -c.p1 - (-c.p1).dot(c.axis) * c.axis;
-    const double A = dp.squaredNorm(), B = 2.0 * dp.dot(op), C = op.squaredNorm() - c.radius * c.radius;
-    if (A > 1e-12) {
-      const double disc = B * B - 4.0 * A * C;
-      if (disc > 0.0) {
-        const double sq = std::sqrt(disc);
-        for (const double t : {(-B - sq) / (2.0 * A), (-B + sq) / (2.0 * A)}) {
-          if (t <= 0.0 || t >= t_max) continue;
-          const double h = (t * d - c.p1).dot(c.axis);
-          if (h >= 0.0 && h <= c.length) return true;
-        }
-      }
-    }
-    // Caps: discs at both ends.
-    const double den = d.dot(c.axis);
-    if (std::abs(den) > 1e-12) {
-      for (const double h : {0.0, c.length}) {
-        const Eigen::Vector3d centre = c.p1 + h * c.axis;
-        const double t = centre.dot(c.axis) / den;
-        if (t <= 0.0 || t >= t_max) continue;
-        if ((t * d - centre).squaredNorm() < c.radius * c.radius) return true;
-      }
-    }
+    if (geometry::ray_hits_cylinder(d, t_max, c.p1, c.axis, c.radius, c.length, c.radius)) return true;
   }
   return false;
 }
