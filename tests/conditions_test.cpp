@@ -16,18 +16,14 @@
 #include "v4r/synth/conditions.hpp"
 #include "v4r/synth/renderer.hpp"
 
+#include "test_objects.hpp"
+
 using namespace v4r;
 
 namespace {
 
-struct ObjectCase {
-  const char* name;
-  std::string (*cao)();
-  double distance;
-};
-const ObjectCase kObjects[] = {{"box", &synth::box_cao, 0.55},
-                               {"ship", &synth::ship_mockup_cao, 0.7},
-                               {"flange", &synth::flange_cao, 0.5}};
+using test::kObjects;
+using test::ObjectCase;
 
 struct Case {
   ObjectCase object;

@@ -1,29 +1,13 @@
 // v4r - robust model-based object tracking. MIT licence.
 #include "v4r/detection/edge_projection.hpp"
 
+#include "v4r/geometry/polygon.hpp"
 #include "v4r/geometry/ray_cylinder.hpp"
 
 #include <algorithm>
 #include <cmath>
 
 namespace v4r::detection {
-
-namespace {
-
-bool inside_polygon(const Eigen::Vector2d& q, const Eigen::Vector2d* poly, std::uint32_t n) {
-  bool in = false;
-  for (std::uint32_t i = 0, j = n - 1; i < n; j = i++) {
-    const Eigen::Vector2d& a = poly[i];
-    const Eigen::Vector2d& b = poly[j];
-    if ((a.y() > q.y()) != (b.y() > q.y())) {
-      const double x = a.x() + (q.y() - a.y()) * (b.x() - a.x()) / (b.y() - a.y());
-      if (q.x() < x) in = !in;
-    }
-  }
-  return in;
-}
-
-}  // namespace
 
 EdgeProjector::EdgeProjector(const model::Model& model, double crease_angle)
     : model_(model), cos_crease_(std::cos(crease_angle)) {
@@ -146,7 +130,7 @@ bool EdgeProjector::hidden(const Eigen::Vector3d& p_cam, model::Index fa, model:
     if (std::abs(den) < 1e-12) continue;
     const double z = f.d / den;
     if (z <= 0.0 || z >= p_cam.z() * (1.0 - 1e-4) - 1e-5) continue;
-    if (inside_polygon(q, poly_.data() + f.first, f.count)) return true;
+    if (geometry::inside_polygon(q, poly_.data() + f.first, f.count)) return true;
   }
   const double tp = p_cam.norm();
   const Eigen::Vector3d d = p_cam / tp;

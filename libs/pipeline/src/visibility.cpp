@@ -1,27 +1,12 @@
 // v4r - robust model-based object tracking. MIT licence.
 #include "v4r/pipeline/visibility.hpp"
 
+#include "v4r/geometry/polygon.hpp"
 #include "v4r/geometry/ray_cylinder.hpp"
 
 #include <cmath>
 
 namespace v4r::pipeline {
-
-namespace {
-// Crossing-number point-in-polygon test.
-bool inside_polygon(const Eigen::Vector2d& q, const Eigen::Vector2d* poly, std::uint32_t n) {
-  bool in = false;
-  for (std::uint32_t i = 0, j = n - 1; i < n; j = i++) {
-    const Eigen::Vector2d& a = poly[i];
-    const Eigen::Vector2d& b = poly[j];
-    if ((a.y() > q.y()) != (b.y() > q.y())) {
-      const double x = a.x() + (q.y() - a.y()) * (b.x() - a.x()) / (b.y() - a.y());
-      if (q.x() < x) in = !in;
-    }
-  }
-  return in;
-}
-}  // namespace
 
 bool VisibilityTester::occluded(const Eigen::Vector3d& p_cam, model::Index face_a, model::Index face_b) const {
   const Eigen::Vector2d q(p_cam.x() / p_cam.z(), p_cam.y() / p_cam.z());
@@ -35,7 +20,7 @@ bool VisibilityTester::occluded(const Eigen::Vector3d& p_cam, model::Index face_
     const double z_face = f.d / den;
     // The face hides the point when it is hit clearly before it along the line of sight.
     if (z_face <= 0.0 || z_face >= p_cam.z() * (1.0 - 1e-4) - 1e-5) continue;
-    if (inside_polygon(q, poly_.data() + f.first, f.count)) return true;
+    if (geometry::inside_polygon(q, poly_.data() + f.first, f.count)) return true;
   }
   return false;
 }

@@ -874,11 +874,10 @@ void VisionCycle::fuse_and_filter(scene::Scene& scene, scene::Object& obj, Objec
     obj.status = scene::TrackStatus::kDegraded;
   }
   obj.quality = accept ? evidence * residual_factor : 0.0;
-  // A pose the image does not support carries the prediction's covariance, which grows with
-  // time while nothing is measured; never the last measurement's.
-  if (obj.status == scene::TrackStatus::kLost && p_.use_filter && obj.filter.initialised() &&
-      obj.covariance_pred.trace() > 0.0)
-    obj.covariance = accept ? obj.covariance_pred : obj.filter.pose_covariance();
+  // A pose the image does not support carries the prediction's covariance (the filter's, this
+  // frame's time update), which grows with time while nothing is measured; never the last
+  // measurement's. (covariance_pred is zero without a running filter.)
+  if (obj.status == scene::TrackStatus::kLost && obj.covariance_pred.trace() > 0.0) obj.covariance = obj.covariance_pred;
   obj.bad_frames = obj.measured == scene::TrackStatus::kTracking ? 0 : obj.bad_frames + 1;
   obj.confirmed = obj.confirmed || obj.measured == scene::TrackStatus::kTracking;
   if (p_.use_filter) {
