@@ -34,6 +34,8 @@
 
 #include "v4r/estimation/pose_solver.hpp"
 
+#include "v4r/geometry/se3_jacobians.hpp"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -176,6 +178,10 @@ void PoseSolver::reserve(std::size_t points, std::size_t lines, std::size_t circ
 }
 
 void PoseSolver::prepare(const ObservationSet& obs) {
+  multi_camera_ = !obs.cameras.empty();
+  // Observations of a camera the set does not give (or of one beyond kMaxSolveCameras) are invalid.
+  const std::size_t n_cams = multi_camera_ ? std::min(obs.cameras.size(), kMaxSolveCameras) : 1;
+  const auto camera_ok = [&](std::uint8_t c) { return c < n_cams; };
   end_points_ = obs.points.size();
   end_lines_ = end_points_ + obs.lines.size();
   end_circles_ = end_lines_ + obs.circles.size();
@@ -198,13 +204,14 @@ void PoseSolver::prepare(const ObservationSet& obs) {
   std::size_t s = 0;
   for (std::size_t i = 0; i < obs.points.size(); ++i, ++s) {
     const PointObservation& o = obs.points[i];
-    const bool ok = finite(o.X_obj) && finite(o.xn) && positive(o.sigma_px);
+    const bool ok = finite(o.X_obj) && finite(o.xn) && positive(o.sigma_px) && camera_ok(o.camera);
     active_[s] = ok ? kActive : kInvalid;
     if (ok) point_bases_[i] = ray_basis(o.xn);
   }
   for (std::size_t i = 0; i < obs.lines.size(); ++i, ++s) {
     const LineObservation& o = obs.lines[i];
-    bool ok = finite(o.X1_obj) && finite(o.X2_obj) && finite(o.xn1) && finite(o.xn2) && positive(o.sigma_px);
+    bool ok = finite(o.X1_obj) && finite(o.X2_obj) && finite(o.xn1) && finite(o.xn2) && positive(o.sigma_px) &&
+              camera_ok(o.camera);
     if (ok) {
       line_normals_[i] = interpretation_plane_normal(o.xn1, o.xn2);
       ok = line_normals_[i].squaredNorm() > 0.5;
@@ -215,19 +222,19 @@ void PoseSolver::prepare(const ObservationSet& obs) {
     const CircleObservation& o = obs.circles[i];
     const double len = o.normal_obj.norm();
     const bool ok = finite(o.center_obj) && finite(o.normal_obj) && finite(o.xn) && positive(o.radius) &&
-                    positive(o.sigma_px) && len > 1e-12;
+                    positive(o.sigma_px) && len > 1e-12 && camera_ok(o.camera);
     active_[s] = ok ? kActive : kInvalid;
     if (ok) circle_axes_[i] = o.normal_obj / len;
   }
   for (std::size_t i = 0; i < obs.points3d.size(); ++i, ++s) {
     const Point3Observation& o = obs.points3d[i];
-    active_[s] = finite(o.X_obj) && finite(o.P_cam) && positive(o.sigma_m) ? kActive : kInvalid;
+    active_[s] = finite(o.X_obj) && finite(o.P_cam) && positive(o.sigma_m) && camera_ok(o.camera) ? kActive : kInvalid;
   }
   for (std::size_t i = 0; i < obs.normals.size(); ++i, ++s) {
     const NormalObservation& o = obs.normals[i];
     const double lo = o.n_obj.norm(), lc = o.n_cam.norm();
     const bool ok = finite(o.n_obj) && finite(o.n_cam) && positive(o.sigma_rad) && lo > 1e-12 && lc > 1e-12 &&
-                    std::isfinite(lo) && std::isfinite(lc);
+                    std::isfinite(lo) && std::isfinite(lc) && camera_ok(o.camera);
     active_[s] = ok ? kActive : kInvalid;
     if (ok) {
       normal_objs_[i] = o.n_obj / lo;
@@ -255,8 +262,27 @@ void PoseSolver::locate(std::size_t slot, Kind& kind, std::size_t& index) const 
   }
 }
 
-void PoseSolver::evaluate(const ObservationSet& obs, std::size_t slot, const SE3& T, const Eigen::Matrix3d& R,
-                          bool jacobian, Eval& e) const {
+void PoseSolver::pose_cameras(const SE3& T, const ObservationSet& obs) {
+  const Eigen::Matrix3d R = T.rotation();
+  if (!multi_camera_) {
+    cams_[0].R = R;
+    cams_[0].t = T.translation();
+    cams_[0].w = weighting(p_);
+    return;
+  }
+  for (std::size_t c = 0; c < obs.cameras.size(); ++c) {
+    const SolveCamera& sc = obs.cameras[c];
+    CameraPose& C = cams_[c];
+    const Eigen::Matrix3d Rc = sc.T_cam_ref.rotation();
+    C.R = Rc * R;
+    C.t = Rc * T.translation() + sc.T_cam_ref.translation();
+    C.Ad = geometry::adjoint(sc.T_cam_ref);
+    C.w = weighting(p_);
+    if (sc.focal_px > 0.0) C.w.focal_px = sc.focal_px;
+  }
+}
+
+void PoseSolver::evaluate(const ObservationSet& obs, std::size_t slot, bool jacobian, Eval& e) const {
   Kind kind;
   std::size_t i;
   locate(slot, kind, i);
@@ -264,11 +290,17 @@ void PoseSolver::evaluate(const ObservationSet& obs, std::size_t slot, const SE3
   if (jacobian) e.Jw.setZero();
   e.m = 0;
   e.depth.setOnes();
-  const ResidualWeighting w = weighting(p_);
-  const Eigen::Vector3d& t = T.translation();
+  // Each observation sees the pose through its camera; a Jacobian in that camera's coordinates
+  // becomes one of the solved pose's left update by Ad(T_cam_ref).
+  std::uint8_t cam = 0;
   switch (kind) {
     case Kind::kPoint: {
       const PointObservation& o = obs.points[i];
+      cam = o.camera;
+      const CameraPose& C = cams_[o.camera];
+      const ResidualWeighting& w = C.w;
+      const Eigen::Matrix3d& R = C.R;
+      const Eigen::Vector3d& t = C.t;
       Eigen::Vector2d rw;
       Matrix26d J;
       const Eigen::Vector3d p = R * o.X_obj + t;
@@ -281,6 +313,11 @@ void PoseSolver::evaluate(const ObservationSet& obs, std::size_t slot, const SE3
     }
     case Kind::kLine: {
       const LineObservation& o = obs.lines[i];
+      cam = o.camera;
+      const CameraPose& C = cams_[o.camera];
+      const ResidualWeighting& w = C.w;
+      const Eigen::Matrix3d& R = C.R;
+      const Eigen::Vector3d& t = C.t;
       Eigen::Vector2d rw;
       Matrix26d J;
       const Eigen::Vector3d p1 = R * o.X1_obj + t, p2 = R * o.X2_obj + t;
@@ -293,6 +330,11 @@ void PoseSolver::evaluate(const ObservationSet& obs, std::size_t slot, const SE3
     }
     case Kind::kCircle: {
       const CircleObservation& o = obs.circles[i];
+      cam = o.camera;
+      const CameraPose& C = cams_[o.camera];
+      const ResidualWeighting& w = C.w;
+      const Eigen::Matrix3d& R = C.R;
+      const Eigen::Vector3d& t = C.t;
       double rw = 0.0;
       Matrix16d J;
       if (!normalised_circle_residual(R * o.center_obj + t, R * circle_axes_[i], o.radius, o.xn, o.sigma_px, w, rw,
@@ -305,6 +347,9 @@ void PoseSolver::evaluate(const ObservationSet& obs, std::size_t slot, const SE3
     }
     case Kind::kPoint3: {
       const Point3Observation& o = obs.points3d[i];
+      cam = o.camera;
+      const Eigen::Matrix3d& R = cams_[o.camera].R;
+      const Eigen::Vector3d& t = cams_[o.camera].t;
       Eigen::Vector3d rw;
       Matrix36d J;
       normalised_point3_residual(R * o.X_obj + t, o.P_cam, o.sigma_m, rw, jacobian ? &J : nullptr);
@@ -315,6 +360,8 @@ void PoseSolver::evaluate(const ObservationSet& obs, std::size_t slot, const SE3
     }
     case Kind::kNormal: {
       const NormalObservation& o = obs.normals[i];
+      cam = o.camera;
+      const Eigen::Matrix3d& R = cams_[o.camera].R;
       Eigen::Vector2d rw;
       Matrix26d J;
       if (!normalised_normal_residual(R * normal_objs_[i], normal_bases_[i], o.sigma_rad, rw, jacobian ? &J : nullptr))
@@ -325,6 +372,7 @@ void PoseSolver::evaluate(const ObservationSet& obs, std::size_t slot, const SE3
       break;
     }
   }
+  if (jacobian && multi_camera_ && e.m > 0) e.Jw = (e.Jw * cams_[cam].Ad).eval();
 }
 
 int PoseSolver::count_active() const {
@@ -356,9 +404,11 @@ PoseSolver::NormalEquations PoseSolver::linearise(const SE3& T, const Observatio
   // point and line weights' depths go to depth_trial_; frozen_chi2 re-weights their residuals
   // with the depths of depth_ref_ (weight ~ 1 / depth).
   NormalEquations ne;
-  const Eigen::Matrix3d R = T.rotation();
-  const Eigen::Vector3d& t = T.translation();
-  const ResidualWeighting w = weighting(p_);
+  pose_cameras(T, obs);
+  // Jacobian of a left update of T from that of the observation's camera (see evaluate).
+  const auto to_ref = [&](auto& J, std::uint8_t cam) {
+    if (multi_camera_) J = (J * cams_[cam].Ad).eval();
+  };
   const auto rho = [&](std::size_t s) { return robust ? rho_[s] : 1.0; };
   const auto add = [&](std::size_t s, double sq, double frozen_sq, int m, double sigma_px) {
     ne.chi2 += sq;
@@ -376,8 +426,11 @@ PoseSolver::NormalEquations PoseSolver::linearise(const SE3& T, const Observatio
   for (std::size_t i = 0; i < obs.points.size(); ++i, ++s) {
     if (active_[s] != kActive) continue;
     const PointObservation& o = obs.points[i];
-    const Eigen::Vector3d p = R * o.X_obj + t;
+    const CameraPose& C = cams_[o.camera];
+    const ResidualWeighting& w = C.w;
+    const Eigen::Vector3d p = C.R * o.X_obj + C.t;
     ne.behind += normalised_point_residual(p, point_bases_[i], o.sigma_px, w, rw2, &J2) ? 1 : 0;
+    to_ref(J2, o.camera);
     accumulate<2>(rw2, J2, rho(s), ne.H, ne.g);
     const double z = std::max(p.z(), w.min_depth), f = z / depth_ref_[s].x();
     depth_trial_[s].setConstant(z);
@@ -386,8 +439,11 @@ PoseSolver::NormalEquations PoseSolver::linearise(const SE3& T, const Observatio
   for (std::size_t i = 0; i < obs.lines.size(); ++i, ++s) {
     if (active_[s] != kActive) continue;
     const LineObservation& o = obs.lines[i];
-    const Eigen::Vector3d p1 = R * o.X1_obj + t, p2 = R * o.X2_obj + t;
+    const CameraPose& C = cams_[o.camera];
+    const ResidualWeighting& w = C.w;
+    const Eigen::Vector3d p1 = C.R * o.X1_obj + C.t, p2 = C.R * o.X2_obj + C.t;
     ne.behind += normalised_line_residual(p1, p2, line_normals_[i], o.sigma_px, w, rw2, &J2) ? 1 : 0;
+    to_ref(J2, o.camera);
     accumulate<2>(rw2, J2, rho(s), ne.H, ne.g);
     const Eigen::Vector2d z(std::max(p1.z(), w.min_depth), std::max(p2.z(), w.min_depth));
     const Eigen::Vector2d frozen = rw2.cwiseProduct(z).cwiseQuotient(depth_ref_[s]);
@@ -397,13 +453,15 @@ PoseSolver::NormalEquations PoseSolver::linearise(const SE3& T, const Observatio
   for (std::size_t i = 0; i < obs.circles.size(); ++i, ++s) {
     if (active_[s] != kActive) continue;
     const CircleObservation& o = obs.circles[i];
+    const CameraPose& C = cams_[o.camera];
     Eigen::Matrix<double, 1, 1> rw1;
     Matrix16d J1;
-    if (!normalised_circle_residual(R * o.center_obj + t, R * circle_axes_[i], o.radius, o.xn, o.sigma_px, w, rw1(0),
-                                    &J1)) {
+    if (!normalised_circle_residual(C.R * o.center_obj + C.t, C.R * circle_axes_[i], o.radius, o.xn, o.sigma_px, C.w,
+                                    rw1(0), &J1)) {
       ++ne.unusable;
       continue;
     }
+    to_ref(J1, o.camera);
     accumulate<1>(rw1, J1, rho(s), ne.H, ne.g);
     add(s, rw1(0) * rw1(0), rw1(0) * rw1(0), 1, o.sigma_px);  // exact Jacobian: nothing frozen
   }
@@ -412,17 +470,19 @@ PoseSolver::NormalEquations PoseSolver::linearise(const SE3& T, const Observatio
     const Point3Observation& o = obs.points3d[i];
     Eigen::Vector3d rw3;
     Matrix36d J3;
-    normalised_point3_residual(R * o.X_obj + t, o.P_cam, o.sigma_m, rw3, &J3);
+    normalised_point3_residual(cams_[o.camera].R * o.X_obj + cams_[o.camera].t, o.P_cam, o.sigma_m, rw3, &J3);
+    to_ref(J3, o.camera);
     accumulate<3>(rw3, J3, rho(s), ne.H, ne.g);
     add(s, rw3.squaredNorm(), rw3.squaredNorm(), 3, 0.0);
   }
   for (std::size_t i = 0; i < obs.normals.size(); ++i, ++s) {
     if (active_[s] != kActive) continue;
     const NormalObservation& o = obs.normals[i];
-    if (!normalised_normal_residual(R * normal_objs_[i], normal_bases_[i], o.sigma_rad, rw2, &J2)) {
+    if (!normalised_normal_residual(cams_[o.camera].R * normal_objs_[i], normal_bases_[i], o.sigma_rad, rw2, &J2)) {
       ++ne.unusable;
       continue;
     }
+    to_ref(J2, o.camera);
     accumulate<2>(rw2, J2, rho(s), ne.H, ne.g);
     add(s, rw2.squaredNorm(), rw2.squaredNorm(), 2, 0.0);
   }
@@ -442,13 +502,13 @@ PoseSolver::NormalEquations PoseSolver::linearise(const SE3& T, const Observatio
 }
 
 double PoseSolver::statistics(const SE3& T, const Matrix6d& H_inv, const ObservationSet& obs, Statistic kind) {
-  const Eigen::Matrix3d R = T.rotation();
+  pose_cameras(T, obs);
   const bool standardised = kind == Statistic::kStandardised;
   double frozen_cost = 0.0;
   Eval e;
   for (std::size_t s = 0; s < active_.size(); ++s) {
     if (active_[s] == kInvalid) continue;
-    evaluate(obs, s, T, R, standardised, e);
+    evaluate(obs, s, standardised, e);
     dims_[s] = static_cast<std::uint8_t>(e.m);
     if (e.m == 0) {
       chi2_[s] = 0.0;
@@ -639,6 +699,10 @@ PoseResult PoseSolver::solve(const SE3& T_init, const ObservationSet& obs, const
   if (!T_init.translation().allFinite() || !T_init.quaternion().coeffs().allFinite())
     return finish(SolveStatus::kDiverged);
   if (!(p_.focal_px > 0.0) || !std::isfinite(p_.focal_px)) return finish(SolveStatus::kDegenerate);
+  for (const SolveCamera& c : obs.cameras)
+    if (!c.T_cam_ref.translation().allFinite() || !c.T_cam_ref.quaternion().coeffs().allFinite() ||
+        !std::isfinite(c.focal_px))
+      return finish(SolveStatus::kDegenerate);
   if (count_active() < min_active()) return finish(SolveStatus::kTooFewObservations);
 
   const bool detect = p_.max_outlier_rounds > 0 && p_.outlier_threshold > 0.0;
@@ -731,11 +795,11 @@ PoseResult PoseSolver::solve(const SE3& T_init, const ObservationSet& obs, const
   // 5. Accuracy of the final pose. Observations unusable at it did not enter H: flag them.
   if (ne.behind > 0) return finish(SolveStatus::kDiverged);
   if (ne.unusable > 0) {
-    const Eigen::Matrix3d R = T.rotation();
+    pose_cameras(T, obs);
     Eval e;
     for (std::size_t s = 0; s < n; ++s) {
       if (active_[s] != kActive) continue;
-      evaluate(obs, s, T, R, /*jacobian=*/false, e);
+      evaluate(obs, s, /*jacobian=*/false, e);
       if (e.m == 0) active_[s] = kRejected;
     }
     if (ne.residuals < kUnknowns || count_active() < min_active())

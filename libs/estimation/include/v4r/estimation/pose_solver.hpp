@@ -1,6 +1,7 @@
 // v4r - robust model-based object tracking. MIT licence.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -18,6 +19,7 @@ struct PointObservation {
   Eigen::Vector3d X_obj = Eigen::Vector3d::Zero();   ///< model point, object frame, metres
   Eigen::Vector2d xn = Eigen::Vector2d::Zero();      ///< undistorted normalised image coordinates
   double sigma_px = 1.0;                             ///< a-priori image noise, pixels
+  std::uint8_t camera = 0;                           ///< index into ObservationSet::cameras
 };
 
 /// \brief A 2-D image line matched to a model edge. Discrepancy (Wunsch): the distances of the
@@ -27,6 +29,7 @@ struct LineObservation {
   Eigen::Vector3d X1_obj = Eigen::Vector3d::Zero(), X2_obj = Eigen::Vector3d::Zero();  ///< edge points, object frame
   Eigen::Vector2d xn1 = Eigen::Vector2d::Zero(), xn2 = Eigen::Vector2d::Zero();  ///< two points of the image line, normalised
   double sigma_px = 1.0;  ///< a-priori noise of the line position across, pixels
+  std::uint8_t camera = 0;  ///< index into ObservationSet::cameras
 };
 
 /// \brief A 3-D point measured in the camera frame (stereo, range sensor) matched to a model
@@ -35,6 +38,7 @@ struct Point3Observation {
   Eigen::Vector3d X_obj = Eigen::Vector3d::Zero();  ///< model point, object frame, metres
   Eigen::Vector3d P_cam = Eigen::Vector3d::Zero();  ///< measured point, camera frame, metres
   double sigma_m = 0.002;                           ///< a-priori noise per coordinate, metres
+  std::uint8_t camera = 0;                          ///< index into ObservationSet::cameras
 };
 
 /// \brief The measured surface normal of a model region (e.g. from a fitted plane). Discrepancy:
@@ -43,6 +47,7 @@ struct NormalObservation {
   Eigen::Vector3d n_obj = Eigen::Vector3d::UnitZ();  ///< region normal, object frame (normalised by the solver)
   Eigen::Vector3d n_cam = Eigen::Vector3d::UnitZ();  ///< measured normal, camera frame (normalised by the solver)
   double sigma_rad = 0.02;                           ///< a-priori noise per component, radians
+  std::uint8_t camera = 0;                           ///< index into ObservationSet::cameras
 };
 
 /// \brief One edge point on the image (an ellipse) of a model circle. Discrepancy in object
@@ -57,6 +62,7 @@ struct CircleObservation {
   double radius = 0.0;                                     ///< metres, > 0
   Eigen::Vector2d xn = Eigen::Vector2d::Zero();            ///< edge point, undistorted normalised image coordinates
   double sigma_px = 1.0;                                   ///< a-priori image noise of the edge point, pixels
+  std::uint8_t camera = 0;                                 ///< index into ObservationSet::cameras
 };
 
 /// \brief A prior on the pose (e.g. a filter's prediction): the pose is taken to be
@@ -70,6 +76,17 @@ struct PosePrior {
   geometry::Matrix6d information = geometry::Matrix6d::Zero();  ///< m^-2, rad^-2 (symmetric positive definite)
 };
 
+/// \brief A camera of a solve over several cameras (paper 5: the views of all cameras in one
+/// adjustment). The solved pose is then T_ref_obj, and an observation of camera c sees
+/// T_cam_ref * T_ref_obj.
+struct SolveCamera {
+  geometry::SE3 T_cam_ref;  ///< maps the reference frame (of the solved pose) into the camera
+  double focal_px = 0.0;    ///< the camera's focal length (pixel sigmas to normalised units); <= 0: PoseSolverParams::focal_px
+};
+
+/// Most cameras one solve takes (observations of a camera beyond are invalid).
+inline constexpr std::size_t kMaxSolveCameras = 16;
+
 /// \brief All observations of one solve, by type (any span may be empty).
 struct ObservationSet {
   std::span<const PointObservation> points;
@@ -79,6 +96,10 @@ struct ObservationSet {
   std::span<const NormalObservation> normals;
   /// Optional prior on the pose; with it a solve needs only one valid observation.
   const PosePrior* prior = nullptr;
+  /// The cameras the observations come from (their `camera` indexes this). Empty: one camera
+  /// whose frame is that of the solved pose (T_cam_obj), focal length from the parameters. At
+  /// most kMaxSolveCameras; observations naming a camera that is not given are invalid.
+  std::span<const SolveCamera> cameras;
 };
 
 /// \brief Optional per-observation inlier outputs of a solve, one span per type of
@@ -214,12 +235,22 @@ class PoseSolver {
     Eigen::Vector2d depth = Eigen::Vector2d::Ones();  ///< depths (m, clamped) behind the weights of points / lines
   };
   enum class Kind : std::uint8_t { kPoint, kLine, kCircle, kPoint3, kNormal };
+  /// One camera at the current pose T of the solve: T_c = T_cam_ref * T, and the Jacobian of a
+  /// left update of T in camera coordinates, Ad(T_cam_ref) (applied only when `moved`).
+  struct CameraPose {
+    Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+    Eigen::Vector3d t = Eigen::Vector3d::Zero();
+    geometry::Matrix6d Ad = geometry::Matrix6d::Identity();
+    ResidualWeighting w;
+  };
+  /// Fills cams_ for the pose T (and the set's cameras).
+  void pose_cameras(const geometry::SE3& T, const ObservationSet& obs);
   enum class Statistic : std::uint8_t { kPlain, kStandardised };
 
   void prepare(const ObservationSet& obs);
   void locate(std::size_t slot, Kind& kind, std::size_t& index) const;
-  void evaluate(const ObservationSet& obs, std::size_t slot, const geometry::SE3& T, const Eigen::Matrix3d& R,
-                bool jacobian, Eval& e) const;
+  /// Residuals (and Jacobian) of one slot at the pose of the last pose_cameras() call.
+  void evaluate(const ObservationSet& obs, std::size_t slot, bool jacobian, Eval& e) const;
   NormalEquations linearise(const geometry::SE3& T, const ObservationSet& obs, bool robust);
   SolveStatus gauss_newton(geometry::SE3& T, const ObservationSet& obs, bool robust, int max_iterations,
                            int& iterations, bool& converged, NormalEquations& last);
@@ -249,6 +280,8 @@ class PoseSolver {
   std::vector<Eigen::Vector3d> circle_axes_;      ///< unit circle axes, object frame
   std::vector<DirectionBasis> normal_bases_;      ///< around the measured normals, camera frame
   std::vector<Eigen::Vector3d> normal_objs_;      ///< unit model normals, object frame
+  std::array<CameraPose, kMaxSolveCameras> cams_;  ///< at the pose of the last pose_cameras()
+  bool multi_camera_ = false;                     ///< the current solve has ObservationSet::cameras
   bool has_prior_ = false;                        ///< the current solve has a valid prior
   geometry::SE3 prior_T_;                         ///< its pose
   geometry::Matrix6d prior_U_ = geometry::Matrix6d::Zero();  ///< upper Cholesky factor of its information
