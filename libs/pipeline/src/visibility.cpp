@@ -8,20 +8,32 @@
 
 namespace v4r::pipeline {
 
+namespace {
+
+/// Whether face cache `f` (polygon in `poly`) hides the point at p_cam, seen along the ray
+/// through its normalised image point q.
+template <typename Face>
+bool face_hides(const Face& f, const Eigen::Vector2d* poly, const Eigen::Vector2d& q, const Eigen::Vector3d& p_cam) {
+  if (q.x() < f.lo.x() || q.y() < f.lo.y() || q.x() > f.hi.x() || q.y() > f.hi.y()) return false;
+  const double den = f.n_cam.dot(Eigen::Vector3d(q.x(), q.y(), 1.0));
+  if (std::abs(den) < 1e-12) return false;
+  const double z_face = f.d / den;
+  // The face hides the point when it is hit clearly before it along the line of sight.
+  if (z_face <= 0.0 || z_face >= p_cam.z() * (1.0 - 1e-4) - 1e-5) return false;
+  return geometry::inside_polygon(q, poly + f.first, f.count);
+}
+
+}  // namespace
+
 bool VisibilityTester::occluded(const Eigen::Vector3d& p_cam, model::Index face_a, model::Index face_b) const {
   const Eigen::Vector2d q(p_cam.x() / p_cam.z(), p_cam.y() / p_cam.z());
-  const Eigen::Vector3d ray(q.x(), q.y(), 1.0);
   for (std::size_t fi = 0; fi < faces_.size(); ++fi) {
     const FaceCache& f = faces_[fi];
     if (!f.usable || fi == face_a || fi == face_b) continue;
-    if (q.x() < f.lo.x() || q.y() < f.lo.y() || q.x() > f.hi.x() || q.y() > f.hi.y()) continue;
-    const double den = f.n_cam.dot(ray);
-    if (std::abs(den) < 1e-12) continue;
-    const double z_face = f.d / den;
-    // The face hides the point when it is hit clearly before it along the line of sight.
-    if (z_face <= 0.0 || z_face >= p_cam.z() * (1.0 - 1e-4) - 1e-5) continue;
-    if (geometry::inside_polygon(q, poly_.data() + f.first, f.count)) return true;
+    if (face_hides(f, poly_.data(), q, p_cam)) return true;
   }
+  for (const FaceCache& f : occluder_faces_)
+    if (face_hides(f, occluder_poly_.data(), q, p_cam)) return true;
   return false;
 }
 
@@ -30,10 +42,64 @@ bool VisibilityTester::hidden_by_cylinder(const Eigen::Vector3d& p_cam) const {
   if (tp < 1e-9) return false;
   const Eigen::Vector3d d = p_cam / tp;  // line of sight, unit
   const double t_max = tp * (1.0 - 1e-4) - 1e-5;
-  for (const CylinderCache& c : cylinders_) {
-    if (geometry::ray_hits_cylinder(d, t_max, c.p1, c.axis, c.radius, c.length, c.radius)) return true;
-  }
+  for (const auto* list : {&cylinders_, &occluder_cylinders_})
+    for (const CylinderCache& c : *list)
+      if (geometry::ray_hits_cylinder(d, t_max, c.p1, c.axis, c.radius, c.length, c.radius)) return true;
   return false;
+}
+
+void VisibilityTester::cache_face(const model::Model& model, const model::Face& f, const geometry::SE3& T_cam_obj,
+                                  const Eigen::Vector3d& cam_in_obj, FaceCache& c, std::vector<Eigen::Vector2d>& poly) {
+  const auto& junctions = model.junctions();
+  const Eigen::Vector3d p0 = junctions[f.loop[0]].p;
+  // Occluder cache: any face facing the camera (strictly) can hide edges behind it.
+  c.usable = f.normal.dot(cam_in_obj - p0) > 0.0;
+  c.n_cam = T_cam_obj.rotation() * f.normal;
+  c.d = c.n_cam.dot(T_cam_obj * p0);
+  if (!c.usable) return;
+  c.lo = Eigen::Vector2d::Constant(1e300);
+  c.hi = Eigen::Vector2d::Constant(-1e300);
+  for (std::uint32_t k = 0; k < c.count; ++k) {
+    const Eigen::Vector3d pc = T_cam_obj * junctions[f.loop[k]].p;
+    if (pc.z() <= 1e-6) {  // faces crossing the camera plane are not used as occluders
+      c.usable = false;
+      break;
+    }
+    const Eigen::Vector2d q(pc.x() / pc.z(), pc.y() / pc.z());
+    poly[c.first + k] = q;
+    c.lo = c.lo.cwiseMin(q);
+    c.hi = c.hi.cwiseMax(q);
+  }
+}
+
+void VisibilityTester::clear_occluders() {
+  occluder_faces_.clear();
+  occluder_poly_.clear();
+  occluder_cylinders_.clear();
+}
+
+void VisibilityTester::add_occluder(const model::Model& model, const geometry::SE3& T_cam_obj) {
+  const Eigen::Vector3d cam_in_obj = -(T_cam_obj.rotation().transpose() * T_cam_obj.translation());
+  for (const model::Face& f : model.faces()) {
+    if (f.loop.size() < 3) continue;
+    FaceCache c;
+    c.first = static_cast<std::uint32_t>(occluder_poly_.size());
+    c.count = static_cast<std::uint32_t>(f.loop.size());
+    occluder_poly_.resize(occluder_poly_.size() + f.loop.size());
+    cache_face(model, f, T_cam_obj, cam_in_obj, c, occluder_poly_);
+    if (c.usable) occluder_faces_.push_back(c);
+    else occluder_poly_.resize(c.first);
+  }
+  for (const model::Cylinder& cy : model.cylinders()) {
+    CylinderCache c;
+    c.p1 = T_cam_obj * cy.p1;
+    const Eigen::Vector3d p2 = T_cam_obj * cy.p2;
+    c.length = (p2 - c.p1).norm();
+    if (c.length < 1e-9) continue;
+    c.axis = (p2 - c.p1) / c.length;
+    c.radius = cy.radius;
+    occluder_cylinders_.push_back(c);
+  }
 }
 
 bool VisibilityTester::hidden(const Eigen::Vector3d& p_cam, model::Index face_a, model::Index face_b) const {
@@ -66,7 +132,6 @@ void VisibilityTester::update(const model::Model& model, const geometry::SE3& T_
     c.count = static_cast<std::uint32_t>(f.loop.size());
     cursor += c.count;
     // Face orientation with hysteresis.
-    const Eigen::Vector3d p0 = junctions[f.loop[0]].p;
     Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
     for (model::Index j : f.loop) centroid += junctions[j].p;
     centroid /= static_cast<double>(f.loop.size());
@@ -76,25 +141,7 @@ void VisibilityTester::update(const model::Model& model, const geometry::SE3& T_
     const bool now = was ? cosang > cos_disappear : cosang > cos_appear;
     if (fi < face_visible.size()) face_visible[fi] = now ? 1 : 0;
     grazing_[fi] = !now && cosang > cos_grazing ? 1 : 0;
-    // Occluder cache: any face facing the camera (strictly) can hide edges behind it.
-    c.usable = f.normal.dot(cam_in_obj - p0) > 0.0;
-    c.n_cam = R * f.normal;
-    c.d = c.n_cam.dot(T_cam_obj * p0);
-    if (c.usable) {
-      c.lo = Eigen::Vector2d::Constant(1e300);
-      c.hi = Eigen::Vector2d::Constant(-1e300);
-      for (std::uint32_t k = 0; k < c.count; ++k) {
-        const Eigen::Vector3d pc = T_cam_obj * junctions[f.loop[k]].p;
-        if (pc.z() <= 1e-6) {  // faces crossing the camera plane are not used as occluders
-          c.usable = false;
-          break;
-        }
-        const Eigen::Vector2d q(pc.x() / pc.z(), pc.y() / pc.z());
-        poly_[c.first + k] = q;
-        c.lo = c.lo.cwiseMin(q);
-        c.hi = c.hi.cwiseMax(q);
-      }
-    }
+    cache_face(model, f, T_cam_obj, cam_in_obj, c, poly_);
   }
 
   cylinders_.clear();

@@ -198,3 +198,56 @@ TEST(Visibility, EdgesLeavingTheImageAreClippedAndShortOnesDropped) {
   vt.update(f.m, T, cam, f.face_vis, f.out);
   for (const auto& v : f.out) EXPECT_FALSE(v.visible);
 }
+
+TEST(Visibility, AnotherObjectInFrontHidesEdgesBehindIt) {
+  // Two boxes: the far one 0.8 m away, the near one 0.5 m away and shifted so that it covers the
+  // far box's left half in the image. Edges of the far box behind the near one are cut; edges
+  // beside it keep their full length; an occluder behind the far box hides nothing.
+  Fixture far(kBox);
+  const model::Model near_model = parse(kBox);
+  const geometry::SE3 T_far = geometry::SE3::from_rvec(Eigen::Vector3d(0.0, 0.0, 0.8), Eigen::Vector3d(0.2, 0.3, 0.0));
+  const geometry::SE3 T_near = geometry::SE3::from_rvec(Eigen::Vector3d(-0.08, 0.0, 0.5), Eigen::Vector3d::Zero());
+  pipeline::VisibilityTester vt;
+  vt.update(far.m, T_far, camera(), far.face_vis, far.out);
+  const std::vector<pipeline::EdgeVisibility> alone = far.out;
+  std::fill(far.face_vis.begin(), far.face_vis.end(), 0);
+  vt.add_occluder(near_model, T_near);
+  vt.update(far.m, T_far, camera(), far.face_vis, far.out);
+  int cut = 0, kept = 0, visible = 0;
+  for (std::size_t li = 0; li < far.out.size(); ++li) {
+    if (!alone[li].visible) continue;
+    ++visible;
+    const double len_alone = alone[li].s1 - alone[li].s0;
+    const double len = far.out[li].visible ? far.out[li].s1 - far.out[li].s0 : 0.0;
+    EXPECT_LE(len, len_alone + 1e-12) << "line " << li;  // an occluder never adds visibility
+    // Every remaining sample of the edge must be in front of, or beside, the near box.
+    if (len < len_alone - 1e-9) ++cut;
+    else ++kept;
+    if (far.out[li].visible) {
+      const auto e = static_cast<model::Index>(li);
+      const Eigen::Vector3d A = far.m.line_point_a(e), B = far.m.line_point_b(e);
+      const Eigen::Vector3d mid = T_far * (A + 0.5 * (far.out[li].s0 + far.out[li].s1) * (B - A));
+      EXPECT_FALSE(vt.hidden(mid, far.m.lines()[li].face_left, far.m.lines()[li].face_right)) << "line " << li;
+    }
+  }
+  EXPECT_GE(visible, 7);
+  EXPECT_GE(cut, 2);
+  EXPECT_GE(kept, 2);
+  // A point of the far box straight behind the near box's centre is hidden; cleared, it is not.
+  const Eigen::Vector3d behind = T_near.translation() * (0.85 / T_near.translation().z());
+  EXPECT_TRUE(vt.hidden(behind));
+  vt.clear_occluders();
+  EXPECT_FALSE(vt.hidden(behind));
+  // The near box with the far one as occluder: nothing of it is cut.
+  Fixture near(kBox);
+  vt.update(near.m, T_near, camera(), near.face_vis, near.out);
+  const std::vector<pipeline::EdgeVisibility> near_alone = near.out;
+  std::fill(near.face_vis.begin(), near.face_vis.end(), 0);
+  vt.add_occluder(far.m, T_far);
+  vt.update(near.m, T_near, camera(), near.face_vis, near.out);
+  for (std::size_t li = 0; li < near.out.size(); ++li) {
+    EXPECT_EQ(near.out[li].visible, near_alone[li].visible) << "line " << li;
+    EXPECT_DOUBLE_EQ(near.out[li].s0, near_alone[li].s0);
+    EXPECT_DOUBLE_EQ(near.out[li].s1, near_alone[li].s1);
+  }
+}

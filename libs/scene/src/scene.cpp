@@ -74,6 +74,24 @@ void Scene::set_pose(std::size_t object, const geometry::SE3& T_ref_obj) {
   }
 }
 
+bool Scene::replace_model(std::size_t object, std::shared_ptr<const model::Model> model) {
+  if (object >= objects_.size() || !model) return false;
+  Object& o = objects_[object];
+  o.model = std::move(model);
+  for (View& v : o.views) {
+    View fresh = make_view(v.camera, *o.model);
+    fresh.T_cam_obj = cameras_[v.camera].T_ref_cam.inverse() * o.T_ref_obj;
+    v = std::move(fresh);
+  }
+  return true;
+}
+
+bool Scene::remove_object(std::size_t object) {
+  if (object >= objects_.size()) return false;
+  objects_.erase(objects_.begin() + static_cast<std::ptrdiff_t>(object));
+  return true;
+}
+
 long Scene::find_object(const std::string& name) const {
   for (std::size_t i = 0; i < objects_.size(); ++i)
     if (objects_[i].name == name) return static_cast<long>(i);

@@ -45,32 +45,6 @@ protocol::TrackStatus to_protocol(scene::TrackStatus s) {
   }
 }
 
-/// Replaces the model of scene object `i` and keeps its tracking state (pose, filter, status):
-/// features added or removed while tracking take effect from the next frame without a restart.
-void replace_model(scene::Scene& scene, std::size_t i, std::shared_ptr<const model::Model> m) {
-  auto& objs = scene.objects();
-  scene::Object old = std::move(objs[i]);
-  objs.erase(objs.begin() + static_cast<std::ptrdiff_t>(i));
-  auto idx = scene.add_object(old.name, std::move(m));
-  if (!idx) return;  // cannot happen: the name was free
-  scene::Object& o = scene.objects()[*idx];
-  o.T_ref_obj = old.T_ref_obj;
-  o.covariance = old.covariance;
-  o.status = old.status;
-  o.quality = old.quality;
-  o.filter = old.filter;
-  o.smoother = old.smoother;
-  o.T_ref_obj_filtered = old.T_ref_obj_filtered;
-  o.T_pred = old.T_pred;
-  o.velocity = old.velocity;
-  o.last_stamp = old.last_stamp;
-  o.bad_frames = old.bad_frames;
-  o.measured = old.measured;
-  o.confirmed = old.confirmed;
-  o.evidence = old.evidence;
-  for (scene::View& v : o.views) v.T_cam_obj = scene.cameras()[v.camera].T_ref_cam.inverse() * o.T_ref_obj;
-}
-
 Eigen::Vector3d vec(const protocol::Vec3& v) { return {v[0], v[1], v[2]}; }
 
 /// First line of the `Log on` CSV.
@@ -310,9 +284,9 @@ std::string TrackingService::set_model(ObjectEntry& e, std::shared_ptr<const mod
   const long idx = scene_.find_object(e.name);
   if (!m) {
     // No trackable feature left: the object leaves the scene until it has one again.
-    if (idx >= 0) scene_.objects().erase(scene_.objects().begin() + idx);
+    if (idx >= 0) scene_.remove_object(static_cast<std::size_t>(idx));
   } else if (idx >= 0) {
-    replace_model(scene_, static_cast<std::size_t>(idx), m);
+    scene_.replace_model(static_cast<std::size_t>(idx), m);  // keeps the tracking state
   } else {
     auto added = scene_.add_object(e.name, m);
     if (!added) return format_err(cmd, code::kInternal, added.error().to_string());
@@ -340,7 +314,7 @@ std::string TrackingService::on(const protocol::AddObject& c) {
 std::string TrackingService::on(const protocol::RemoveObject& c) {
   auto it = std::find_if(objects_.begin(), objects_.end(), [&](const ObjectEntry& e) { return e.name == c.name; });
   if (it == objects_.end()) return format_err("RemoveObject", code::kUnknownObject, fmt::format("no object '{}'", c.name));
-  if (const long idx = scene_.find_object(c.name); idx >= 0) scene_.objects().erase(scene_.objects().begin() + idx);
+  if (const long idx = scene_.find_object(c.name); idx >= 0) scene_.remove_object(static_cast<std::size_t>(idx));
   objects_.erase(it);
   count_objects();
   return format_ok("RemoveObject", "name=" + c.name);
@@ -578,7 +552,7 @@ void TrackingService::process_frame(Clock::time_point released) {
   st.cycle_ms = rep.cycle_ms;
   st.overruns = static_cast<std::uint64_t>(std::max<std::int64_t>(0, rep.overruns));
   int visible = 0, tracked = 0, found_obs = 0, used_obs = 0, outlier_obs = 0;
-  auto& objs = scene_.objects();
+  const auto objs = scene_.objects();
   for (std::size_t i = 0; i < objs.size(); ++i) {
     scene::Object& o = objs[i];
     if (o.status == scene::TrackStatus::kUninitialised) continue;
@@ -692,7 +666,7 @@ void TrackingService::object_failed(std::size_t i, const std::string& error, dou
   V4R_LOG_ERROR("v4r serve: object {}: its cycle failed at {:.3f} s: {}; it is reported as failed until SetPose or "
                 "AddModel, the other objects keep running",
                 o.name, stamp, error);
-  scene_.objects().erase(scene_.objects().begin() + static_cast<std::ptrdiff_t>(i));
+  scene_.remove_object(i);
 }
 
 void TrackingService::count_objects() {

@@ -42,7 +42,7 @@ struct Unexpected {
 
 /// \brief A value or an Error (C++23 std::expected, reduced to what v4r needs).
 template <typename T>
-class Expected {
+class [[nodiscard]] Expected {
  public:
   Expected(T value) : v_(std::move(value)) {}  // NOLINT: implicit by design
   Expected(Unexpected u) : v_(std::move(u.error)) {}  // NOLINT
@@ -67,7 +67,7 @@ class Expected {
 
 /// \brief Expected<void>: success or an Error.
 template <>
-class Expected<void> {
+class [[nodiscard]] Expected<void> {
  public:
   Expected() = default;
   Expected(Unexpected u) : err_(std::move(u.error)), ok_(false) {}  // NOLINT

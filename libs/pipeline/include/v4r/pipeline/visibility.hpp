@@ -48,8 +48,15 @@ class VisibilityTester {
   void update(const model::Model& model, const geometry::SE3& T_cam_obj, const geometry::PinholeCamera& cam,
               std::span<std::uint8_t> face_visible, std::span<EdgeVisibility> out);
 
+  /// Other objects of the scene seen by the same camera: their faces turned towards the camera
+  /// and their cylinders hide this model's edges behind them too (by depth along the line of
+  /// sight), until clear_occluders(). Buffers grow only when more occluding geometry is added
+  /// than ever before.
+  void clear_occluders();
+  void add_occluder(const model::Model& model, const geometry::SE3& T_cam_obj);
+
   /// After update(): whether a point of the model (camera frame) is hidden by a face other than
-  /// `face_a` / `face_b` or by one of the model's cylinders (solids: side and caps).
+  /// `face_a` / `face_b`, by one of the model's cylinders (solids: side and caps) or by an occluder.
   [[nodiscard]] bool hidden(const Eigen::Vector3d& p_cam, model::Index face_a = model::kNone,
                             model::Index face_b = model::kNone) const;
 
@@ -62,6 +69,9 @@ class VisibilityTester {
     bool usable = false;
   };
   bool occluded(const Eigen::Vector3d& p_cam, model::Index face_a, model::Index face_b) const;
+  /// Fills a face cache (polygon into `poly` from `cursor`) for a face of `model` at T_cam_obj.
+  static void cache_face(const model::Model& model, const model::Face& f, const geometry::SE3& T_cam_obj,
+                         const Eigen::Vector3d& cam_in_obj, FaceCache& c, std::vector<Eigen::Vector2d>& poly);
 
   VisibilityParams p_;
   struct CylinderCache {
@@ -74,6 +84,10 @@ class VisibilityTester {
   std::vector<Eigen::Vector2d> poly_;
   std::vector<std::uint8_t> sample_ok_;
   std::vector<std::uint8_t> grazing_;  // per face: hidden but seen at a grazing angle
+  // Other objects' geometry (add_occluder): faces turned towards the camera, their polygons, cylinders.
+  std::vector<FaceCache> occluder_faces_;
+  std::vector<Eigen::Vector2d> occluder_poly_;
+  std::vector<CylinderCache> occluder_cylinders_;
 };
 
 }  // namespace v4r::pipeline

@@ -4,6 +4,7 @@
 #include <array>
 #include <cstdint>
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -79,16 +80,10 @@ struct ArcFeature {
 /// \brief An object as seen by one camera: the image features and the view pose.
 struct View {
   std::size_t camera = 0;         ///< index into Scene::cameras()
-  geometry::SE3 T_cam_obj;        ///< view pose
+  geometry::SE3 T_cam_obj;        ///< view pose: T_cam_ref * T_ref_obj at the prediction, then at the measurement
   std::vector<LineFeature> lines;  ///< one per model edge
   std::vector<ArcFeature> arcs;    ///< one per model circle arc
   std::vector<std::uint8_t> face_visible;  ///< per model face, with hysteresis
-  estimation::PoseResult pose;    ///< last pose solve of this view
-  /// The last solve needed the prediction as a prior (the features did not fix every direction).
-  bool prior_used = false;
-  /// Information of the last solve's observations alone (camera frame, left tangent; m^-2,
-  /// rad^-2), without the prior: nearly singular in the directions the features do not fix.
-  geometry::Matrix6d information = geometry::Matrix6d::Zero();
   /// Edge evidence at the view's pose after the last cycle: samples along the projected model
   /// edges and how many of them the image confirms (features::EdgeEvidence).
   int evidence_samples = 0, evidence_matched = 0;
@@ -134,12 +129,21 @@ class Scene {
   std::size_t add_camera(Camera cam);
   /// Adds an object with a model; its pose is unset (kUninitialised) until set_pose.
   Expected<std::size_t> add_object(std::string name, std::shared_ptr<const model::Model> model);
+  /// Gives an object a new model and keeps its tracking state (pose, filter, status): its views
+  /// are rebuilt for the new model's features (found again from the next frame); its place in
+  /// the scene stays. false if there is none at `object` or the model is null.
+  bool replace_model(std::size_t object, std::shared_ptr<const model::Model> model);
+  /// Removes an object (later objects move down by one); false if there is none at `object`.
+  bool remove_object(std::size_t object);
   /// Sets the pose of an object in the reference frame and (re)starts its tracking.
   void set_pose(std::size_t object, const geometry::SE3& T_ref_obj);
 
-  [[nodiscard]] const std::vector<Camera>& cameras() const { return cameras_; }
-  [[nodiscard]] std::vector<Object>& objects() { return objects_; }
-  [[nodiscard]] const std::vector<Object>& objects() const { return objects_; }
+  /// The cameras, in the order added (View::camera indexes them).
+  [[nodiscard]] std::span<const Camera> cameras() const { return cameras_; }
+  /// The objects, in the order added: their state may be edited, the set only through
+  /// add_object (views must match the cameras).
+  [[nodiscard]] std::span<Object> objects() { return objects_; }
+  [[nodiscard]] std::span<const Object> objects() const { return objects_; }
   /// Index of the object with this name, or -1.
   [[nodiscard]] long find_object(const std::string& name) const;
 

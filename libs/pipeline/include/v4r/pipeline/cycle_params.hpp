@@ -1,0 +1,107 @@
+// v4r - robust model-based object tracking. MIT licence.
+#pragma once
+
+#include "v4r/estimation/pose_solver.hpp"
+#include "v4r/features/edge_evidence.hpp"
+#include "v4r/features/ellipse_tracker.hpp"
+#include "v4r/features/line_tracker.hpp"
+#include "v4r/filter/pose_filter.hpp"
+#include "v4r/pipeline/visibility.hpp"
+
+namespace v4r::pipeline {
+
+/// \brief Time budget of a cycle (paper 3.4). Window sizes stay fixed; when the visible features
+/// would overrun the budget the cycle degrades in this order: (1) fewer samples per edge
+/// (`reduced_rows` per line window, half the samples per ellipse), (2) the least informative
+/// features are left out (shortest edges first). Cost is predicted from a per-sample cost that
+/// is learned from the measured tracking time (or fixed, `adapt = false`).
+struct BudgetParams {
+  double cycle_ms = 0.0;          ///< milliseconds per cycle; 0 = no budget
+  double cost_per_sample_us = 0.6;  ///< predicted tracking cost of one window row / ellipse sample, microseconds
+  bool adapt = true;              ///< learn cost_per_sample_us from measured tracking times
+  int reduced_rows = 10;          ///< rows per line window at degradation level 1
+  double reserve_fraction = 0.25;  ///< part of the budget kept for visibility, pose and filter
+};
+
+/// \brief Losing and regaining track: how far to search when a frame goes bad.
+struct RecoveryParams {
+  int max_search_level = 2;       ///< search windows grow to (1 + level) * search half width
+  double lost_quality = 0.15;     ///< feature quality (used/visible, residuals) below this: the measurement is not used
+  int reset_velocity_after = 2;   ///< lost frames after which the filter's velocity is dropped
+  double gate_chi2 = 400.0;       ///< a degraded measurement this far from the prediction (chi^2, 6 dof) is rejected
+};
+
+/// \brief The status from image evidence: after the solve, samples along the whole projected
+/// model (every visible edge and circle, tracked or not) look for a gradient of matching position
+/// and orientation (features::EdgeEvidence). The share they find decides what is reported: below
+/// lost_evidence the pose is not supported by the image (`lost`); from tracking_evidence on, with
+/// a measurement whose features fix every direction, `tracking`; in between, or with directions
+/// held by the prediction, `degraded`. (Whether a measurement is used, and how wide the next
+/// search is, follows the features: RecoveryParams::lost_quality, CycleParams::degraded_ratio.)
+struct StatusParams {
+  features::EdgeEvidenceParams evidence;
+  double tracking_evidence = 0.5;  ///< share of matched edge samples for `tracking`
+  double lost_evidence = 0.2;      ///< below this share: `lost`
+};
+
+/// \brief Every parameter of the vision cycle, with defaults in code (units in the docs).
+struct CycleParams {
+  features::LineTrackerParams track;    ///< window of features found in the last frame
+  int search_half_width = 16;           ///< pixels: half width of the window of features not found (yet)
+  /// A feature missed for this many frames in a row while the view is tracked normally (search
+  /// level 0) is searched only every search_backoff_period-th frame: an edge without contrast in
+  /// this view costs no wide window every frame. 0 disables the back-off.
+  int search_backoff_frames = 4;
+  int search_backoff_period = 4;
+  features::EllipseTrackerParams ellipse;  ///< tracking lines of circle arcs
+  int circle_samples = 40;              ///< tracking lines per full circle (fewer for arcs)
+  double circle_sigma_px = 0.7;         ///< a-priori noise of an ellipse edge point, pixels
+  int circle_max_points = 16;           ///< ellipse edge points per circle handed to the pose solver
+  double circle_min_cos = 0.15;         ///< circles seen more edge-on than this (|cos| of view angle) are not tracked
+  estimation::PoseSolverParams solver;
+  VisibilityParams visibility;
+  double line_sigma_px = 0.5;           ///< a-priori noise of a tracked line, pixels
+  bool use_junctions = true;            ///< intersect tracked edges at model junctions (paper 3.3)
+  double junction_min_angle = 0.35;     ///< radians: smallest angle between edges intersected at a junction
+  double junction_sigma_scale = 1.5;    ///< junction sigma = line sigma * this / sin(angle)
+  /// Line-arc junctions with a common tangent (paper 3.3): the junction is the point of the
+  /// measured ellipse whose tangent is parallel to the measured line, valid when the line passes
+  /// within this distance of it (the two edges touch).
+  double tangent_junction_tol_px = 1.5;
+  double tangent_junction_sigma_scale = 6.0;  ///< its sigma = line sigma * this (weak along the line)
+  int min_lines = 4;                    ///< fewer observations than this: the view pose is not updated without a prior
+  /// When the features do not fix the pose (fewer than min_lines, or a degenerate set: parallel
+  /// edges, one circle), solve with the filter's prediction as a prior: the observed directions
+  /// come from the image, the others from the prediction, and the object is `degraded`.
+  bool prior_fallback = true;
+  double prior_max_rms_px = 3.0;  ///< a solve without prior whose RMS residual exceeds this is redone with it
+  double degraded_ratio = 0.5;          ///< used / visible below this: a weak measurement (wider search, gated)
+  int refine_passes = 2;                ///< track + solve passes per frame (later ones re-measure missed features from the new pose)
+  /// true: the observations of every camera that sees an object enter one solve of T_ref_obj
+  /// (each through its camera's T_ref_cam). false: each view is solved alone and the view poses
+  /// are fused by their information (the paper's view fusion; kept for comparison).
+  bool joint_solve = true;
+  double ambiguity_angle = 0.2;         ///< radians: edges closer than this in image direction count as parallel
+  double ambiguity_margin_px = 2.0;     ///< parallel edges closer than track.half_width + this are side by side
+  /// Side-by-side edges (a thin wall seen obliquely) are tracked in windows split half way between
+  /// them when each keeps at least this many pixels towards the other; closer ones are ambiguous
+  /// and left out. A value above track.half_width leaves every side-by-side pair out.
+  double split_min_px = 3.0;
+  /// false: side-by-side edges are neither split nor merged but both left out (within the
+  /// tracking window's half width + ambiguity_margin_px).
+  bool track_side_by_side = true;
+  double ambiguity_min_overlap = 0.2;   ///< ... if they overlap by this fraction of the shorter one
+  BudgetParams budget;
+  RecoveryParams recovery;
+  StatusParams status;
+  bool use_filter = true;               ///< predict with the EKF (constant velocity); else constant pose
+  filter::PoseFilterParams filter;
+  /// The reported pose is that of a second filter (Object::smoother) fed the same measurements,
+  /// whose process noise adapts (PoseFilterParams::adapt_noise): at rest it averages the
+  /// measurements' noise away, a motion restores full noise at once. The tracking filter, which
+  /// places the search windows, keeps the full noise. false: the measurement is reported.
+  bool smooth_output = true;
+  double frame_interval_s = 1.0 / 30.0;  ///< seconds between frames when no time stamps are given
+};
+
+}  // namespace v4r::pipeline

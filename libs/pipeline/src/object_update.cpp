@@ -1,0 +1,119 @@
+// v4r - robust model-based object tracking. MIT licence.
+#include "v4r/pipeline/object_update.hpp"
+
+#include <algorithm>
+
+#include <Eigen/LU>
+
+#include "v4r/geometry/se3_jacobians.hpp"
+
+namespace v4r::pipeline {
+
+ObjectMeasurement combine_solves(std::span<const ObjectSolve> solves) {
+  ObjectMeasurement m;
+  geometry::SE3 T0;
+  geometry::Matrix6d info_sum = geometry::Matrix6d::Zero();
+  geometry::Vector6d info_xi = geometry::Vector6d::Zero();
+  for (const ObjectSolve& s : solves) {
+    if (!s.updated) continue;
+    if (m.solves == 0) T0 = s.T_ref_obj;
+    m.prior_used = m.prior_used || s.prior_used;
+    info_sum += s.information;
+    info_xi += s.information * (s.T_ref_obj * T0.inverse()).log();
+    ++m.solves;
+  }
+  if (m.solves == 0) return m;
+  m.covariance = info_sum.inverse();
+  m.T_ref_obj = m.solves == 1 ? T0 : geometry::SE3::exp(m.covariance * info_xi) * T0;
+  return m;
+}
+
+void update_object(scene::Object& obj, const ObjectMeasurement& m, const CycleParams& p, ObjectReport& rep,
+                   double stamp_s) {
+  obj.last_stamp = stamp_s;  // (the filter's time update for this frame was done in process())
+  // Status from the image: the share of the projected model's edge samples that the image
+  // confirms, at the views' measured poses.
+  int ev_samples = 0, ev_matched = 0;
+  for (const scene::View& view : obj.views) {
+    ev_samples += view.evidence_samples;
+    ev_matched += view.evidence_matched;
+  }
+  const double evidence = ev_samples > 0 ? static_cast<double>(ev_matched) / ev_samples : 0.0;
+  rep.evidence = evidence;
+  rep.evidence_samples = ev_samples;
+  obj.evidence = evidence;
+  // Whether the measurement is used follows the features: the share of visible features used,
+  // lowered by large residuals.
+  double ratio = rep.features_visible > 0 ? static_cast<double>(rep.lines_used + rep.junctions_used / 2 +
+                                                                 (rep.circle_points_used > 0 ? 1 : 0)) /
+                                                rep.features_visible
+                                          : 0.0;
+  ratio = std::clamp(ratio, 0.0, 1.0);
+  const double residual_factor = 1.0 / (1.0 + (rep.rms_px / 1.5) * (rep.rms_px / 1.5));
+  bool accept = m.solves > 0 && ratio * residual_factor >= p.recovery.lost_quality;
+  const geometry::SE3& T_meas = m.T_ref_obj;
+  const geometry::Matrix6d& cov_meas = m.covariance;
+  const bool prior_used = m.prior_used;
+  if (p.use_filter) {
+    if (accept) {
+      // A floor on the measurement covariance keeps the filter from trusting a pose more than the
+      // renderer-free reality of a camera allows (0.1 mm, 0.02 degrees).
+      geometry::Matrix6d floor = geometry::Matrix6d::Zero();
+      floor.diagonal() << 1e-8, 1e-8, 1e-8, 1e-7, 1e-7, 1e-7;
+      const double chi2 = obj.filter.innovation_chi2(T_meas, cov_meas + floor);
+      if (ratio < p.degraded_ratio && chi2 > p.recovery.gate_chi2) {
+        accept = false;  // a weak measurement far from the prediction: more likely wrong than right
+        rep.measurement_rejected = true;
+      } else {
+        obj.filter.update(T_meas, cov_meas + floor);
+        // The reported pose: the smoother's. A measurement it cannot explain even at full noise
+        // (a recovery, a jump) restarts it there.
+        if (p.smooth_output && obj.smoother.update(T_meas, cov_meas + floor) > p.recovery.gate_chi2)
+          obj.smoother.reset(T_meas, cov_meas + floor);
+      }
+    }
+  }
+  if (accept) {
+    obj.T_ref_obj = p.use_filter && p.smooth_output && obj.smoother.initialised() ? obj.smoother.pose() : T_meas;
+    // Directions held by the prediction carry the filter's covariance, not the (huge) one of
+    // the observations alone.
+    obj.covariance = prior_used && p.use_filter ? obj.filter.pose_covariance() : cov_meas;
+    obj.measured = ratio >= p.degraded_ratio && !prior_used ? scene::TrackStatus::kTracking : scene::TrackStatus::kDegraded;
+    rep.prior_used = prior_used;
+  } else {
+    // No usable measurement: hold the prediction (the filter's, which does not run away: its
+    // velocity is dropped after a few bad frames) and search wider next time.
+    obj.T_ref_obj = obj.T_pred;
+    obj.measured = scene::TrackStatus::kLost;
+  }
+  // The reported status: what the image shows at the pose.
+  if (!accept || evidence < p.status.lost_evidence) {
+    obj.status = scene::TrackStatus::kLost;
+  } else if (evidence >= p.status.tracking_evidence && obj.measured == scene::TrackStatus::kTracking) {
+    obj.status = scene::TrackStatus::kTracking;
+  } else {
+    obj.status = scene::TrackStatus::kDegraded;
+  }
+  obj.quality = accept ? evidence * residual_factor : 0.0;
+  // A pose the image does not support carries the prediction's covariance (the filter's, this
+  // frame's time update), which grows with time while nothing is measured; never the last
+  // measurement's. (covariance_pred is zero without a running filter.)
+  if (obj.status == scene::TrackStatus::kLost && obj.covariance_pred.trace() > 0.0) obj.covariance = obj.covariance_pred;
+  obj.bad_frames = obj.measured == scene::TrackStatus::kTracking ? 0 : obj.bad_frames + 1;
+  obj.confirmed = obj.confirmed || obj.measured == scene::TrackStatus::kTracking;
+  if (p.use_filter) {
+    if (!accept && obj.bad_frames >= p.recovery.reset_velocity_after) {
+      obj.filter.reset_velocity();
+      obj.smoother.reset_velocity();
+    }
+    obj.T_ref_obj_filtered = obj.filter.pose();
+    obj.velocity = obj.filter.velocity();
+  } else {
+    obj.T_ref_obj_filtered = obj.T_ref_obj;
+    obj.velocity.setZero();
+  }
+  rep.status = obj.status;
+  rep.quality = obj.quality;
+}
+
+}  // namespace v4r::pipeline
