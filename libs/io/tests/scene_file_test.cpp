@@ -7,6 +7,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <random>
 #include <string>
 
 #include "v4r/io/camera_io.hpp"
@@ -182,6 +183,33 @@ TEST(SceneFile, GarbageNeverCrashes) {
     ASSERT_FALSE(s);
     EXPECT_FALSE(s.error().message.empty());
     EXPECT_EQ(s.error().file, d.file("scene.yaml"));
+  }
+}
+
+TEST(SceneFile, MutatedFilesNeverCrashAndErrorsNameTheFile) {
+  SceneDir d;
+  ASSERT_TRUE(d.ok());
+  const std::string good = kGood;
+  const char kAlphabet[] = "-:[],{}#&*!|>'\"%@` \n\t0123456789.eEabcxyz";
+  std::mt19937 rng(11);
+  for (int trial = 0; trial < 400; ++trial) {
+    std::string text = good;
+    const int edits = 1 + static_cast<int>(rng() % 4);
+    for (int e = 0; e < edits; ++e) {
+      const std::size_t at = rng() % text.size();
+      const char c = kAlphabet[rng() % (sizeof(kAlphabet) - 1)];
+      switch (rng() % 3) {
+        case 0: text[at] = c; break;
+        case 1: text.insert(text.begin() + static_cast<long>(at), c); break;
+        default: text.erase(at, 1 + rng() % 8); break;
+      }
+    }
+    SCOPED_TRACE(text);
+    auto s = d.load(text);
+    if (!s) {
+      EXPECT_FALSE(s.error().message.empty());
+      EXPECT_EQ(s.error().file, d.file("scene.yaml"));
+    }
   }
 }
 
