@@ -110,7 +110,7 @@ Expected<SceneTrackSummary> run_scene_track(const SceneTrackOptions& opt) {
   auto file = io::load_scene_file(opt.scene_path);
   if (!file) return file.error();
   if (file->objects.empty())
-    return Error{"no objects: `v4r track --scene` needs at least one object to track", file->path, 0, 0, "objects"};
+    return file->objects_at.error("no objects: `v4r track --scene` needs at least one object to track");
   auto inputs = open_inputs(*file);
   if (!inputs) return inputs.error();
   // Frame 0 of every camera first: a calibration without the image size takes its camera's.

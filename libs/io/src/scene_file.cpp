@@ -1,6 +1,7 @@
 // v4r - robust model-based object tracking. MIT licence.
 #include "v4r/io/scene_file.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -216,6 +217,8 @@ class SceneReader {
         return error_at(cams[i]["name"], fmt::format("cameras[{}].name", i), fmt::format("duplicate camera name '{}'", c->name));
       s.cameras.push_back(std::move(*c));
     }
+    s.objects_at = SceneFileMark{source_, 1, "objects"};
+    if (const YAML::Node objs = root["objects"]; objs.IsDefined()) s.objects_at.line = std::max(1, line_of(objs));
     if (const YAML::Node objs = root["objects"]; objs.IsDefined() && !objs.IsNull()) {
       if (!objs.IsSequence()) return error_at(objs, "objects", "expected a list of objects (- name: ...)");
       names.clear();

@@ -65,6 +65,7 @@ struct SceneFile {
   std::string reference_frame = "ref";
   std::vector<SceneCameraSpec> cameras;
   std::vector<SceneObjectSpec> objects;
+  SceneFileMark objects_at;     ///< the `objects` key, or the file's first line without one
 };
 
 /// Loads a scene file; every error names the file, the line and the field (unknown key, missing
