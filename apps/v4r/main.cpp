@@ -319,7 +319,7 @@ int main(int argc, char** argv) {
     track->add_option("--output,--out", to.output_csv, "Pose CSV to write");
     app::SceneTrackOptions sto;
     add_scene_track_options(track, sto);
-    track->add_option("--overlay", to.overlay, "Overlay video (.avi/.mp4) or folder of PNGs");
+    track->add_option("--overlay", to.overlay, "Overlay video (.avi/.mp4) or folder of PNGs; with --scene a folder, DIR/<camera>/ per camera");
     track->add_option("--gt", to.gt_csv, "Ground-truth CSV: print accuracy");
     track->add_option("--fps", to.fps,
                       "Input frame rate for the time stamps (default: the video's own rate, else 1 / filter.frame_interval)")

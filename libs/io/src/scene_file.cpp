@@ -2,6 +2,7 @@
 #include "v4r/io/scene_file.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -69,6 +70,21 @@ class SceneReader {
     return v.Scalar();
   }
 
+  /// A camera's or object's name: it names files (D/<object>.csv, DIR/<camera>/), so letters,
+  /// digits, '_', '-' and '.', not starting with '.'.
+  Expected<std::string> name(const YAML::Node& entry, const std::string& field) const {
+    auto n = scalar(entry, "name", field);
+    if (!n) return n;
+    const bool ok = std::all_of(n->begin(), n->end(), [](char ch) {
+      return std::isalnum(static_cast<unsigned char>(ch)) != 0 || ch == '_' || ch == '-' || ch == '.';
+    });
+    if (!ok || n->front() == '.')
+      return error_at(entry["name"], field,
+                      fmt::format("'{}': a name may hold letters, digits, '_', '-' and '.' (not first): it names files",
+                                  *n));
+    return n;
+  }
+
   /// Six pose numbers [tx, ty, tz, rx, ry, rz]: metres and a rotation vector in radians.
   Expected<PoseNumbers> pose(const YAML::Node& v, const std::string& field) const {
     if (!v.IsSequence() || v.size() != 6)
@@ -108,9 +124,9 @@ class SceneReader {
     if (auto k = check_keys(e, {"name", "calibration", "input", "T_ref_cam"}, f); !k) return k.error();
     SceneCameraSpec c;
     c.at = mark(e, f);
-    auto name = scalar(e, "name", f + ".name");
-    if (!name) return name.error();
-    c.name = *name;
+    auto n = name(e, f + ".name");
+    if (!n) return n.error();
+    c.name = *n;
     auto calib = scalar(e, "calibration", f + ".calibration");
     if (!calib) return calib.error();
     c.calibration_path = resolve(*calib);
@@ -150,9 +166,9 @@ class SceneReader {
     if (auto k = check_keys(e, {"name", "model", "mesh_scale", "model_units", "init_pose"}, f); !k) return k.error();
     SceneObjectSpec o;
     o.at = mark(e, f);
-    auto name = scalar(e, "name", f + ".name");
-    if (!name) return name.error();
-    o.name = *name;
+    auto n = name(e, f + ".name");
+    if (!n) return n.error();
+    o.name = *n;
     auto model = scalar(e, "model", f + ".model");
     if (!model) return model.error();
     o.model_path = resolve(*model);

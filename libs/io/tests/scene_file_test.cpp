@@ -154,6 +154,10 @@ TEST(SceneFile, EveryErrorNamesFileLineAndField) {
       {"camera without name", "cameras:\n  - calibration: left.yaml\n", 2, "cameras[0].name", "missing"},
       {"bad units", cam + "objects:\n  - name: p\n    model: part.cao\n    model_units: inch\n", 7,
        "objects[0].model_units", "mm, cm or m"},
+      {"object name that leaves the output folder", cam + "objects:\n  - name: ../p\n    model: part.cao\n", 5,
+       "objects[0].name", "names files"},
+      {"camera name with a slash", "cameras:\n  - name: a/b\n    calibration: left.yaml\n", 2, "cameras[0].name",
+       "names files"},
       {"calibration that does not load", "cameras:\n  - name: left\n    calibration: part.cao\n", 3,
        "cameras[0].calibration", "does not load"},
   };

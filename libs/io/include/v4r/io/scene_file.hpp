@@ -69,7 +69,8 @@ struct SceneFile {
 };
 
 /// Loads a scene file; every error names the file, the line and the field (unknown key, missing
-/// file, bad pose, duplicate name, no camera, a calibration that does not load).
+/// file, bad pose, duplicate name, a name that is no plain file name, no camera, a calibration
+/// that does not load).
 Expected<SceneFile> load_scene_file(const std::string& path);
 
 /// Parses scene-file text; `source` names it in errors and `base_dir` resolves relative paths.
