@@ -19,6 +19,7 @@
 #include "inspect.hpp"
 #include "plausibility.hpp"
 #include "progress.hpp"
+#include "scene_track.hpp"
 #include "v4r/geometry/look_at.hpp"
 #include "v4r/io/camera_io.hpp"
 #include "v4r/io/config_io.hpp"
@@ -260,6 +261,30 @@ void add_units_options(CLI::App* cmd, app::ModelUnitsArgs& u) {
       ->check(CLI::IsMember({"mm", "cm", "m"}));
 }
 
+/// `v4r track --scene S.yaml --output-dir D [--overlay DIR]`.
+void add_scene_track_options(CLI::App* track, app::SceneTrackOptions& o) {
+  track->add_option("--scene", o.scene_path,
+                    "Scene file (YAML): cameras (calibration, input, T_ref_cam) and objects (model, init_pose); "
+                    "replaces --model, --camera, --input and the initial pose");
+  track->add_option("--output-dir", o.output_dir, "With --scene: folder of the pose CSVs, one <object>.csv per object");
+}
+
+/// The options `v4r track` needs: --scene with --output-dir, or --model, --camera, --input and
+/// --output. Returns what is wrong, or nothing.
+std::string check_track_usage(CLI::App* track) {
+  const auto given = [track](const char* name) { return track->get_option(name)->count() > 0; };
+  if (given("--scene")) {
+    for (const char* o : {"--model", "--camera", "--input", "--init-pose", "--init-pose-file", "--output", "--gt"})
+      if (given(o)) return fmt::format("{} cannot be combined with --scene (the scene file describes it)", o);
+    if (!given("--output-dir")) return "--scene needs --output-dir D (one D/<object>.csv per object)";
+    return {};
+  }
+  if (given("--output-dir")) return "--output-dir goes with --scene; a single object is written with --output";
+  for (const char* o : {"--model", "--camera", "--input", "--output"})
+    if (!given(o)) return fmt::format("{} is required (or --scene S.yaml --output-dir D)", o);
+  return {};
+}
+
 constexpr const char* kModelHelp = "box, ship, flange, section, a .cao file or a mesh (.obj, .ply, .stl)";
 
 }  // namespace
@@ -285,15 +310,16 @@ int main(int argc, char** argv) {
     std::string init_pose_str;
     bool no_warnings = false, progress = false;
     auto* track = app.add_subcommand("track", "Track an object through an image sequence or video");
-    track->add_option("--model", to.model_path, kModelHelp)->required();
-    track->add_option("--camera", to.camera_path, "Calibration: OpenCV YAML/XML, ROS camera_info YAML or ViSP XML")
-        ->required();
-    track->add_option("--input", to.input, "Image folder, printf pattern (frames/%06d.png), video, camera /dev/videoN, gst:PIPELINE or ros2:/camera")->required();
+    track->add_option("--model", to.model_path, kModelHelp);
+    track->add_option("--camera", to.camera_path, "Calibration: OpenCV YAML/XML, ROS camera_info YAML or ViSP XML");
+    track->add_option("--input", to.input, "Image folder, printf pattern (frames/%06d.png), video, camera /dev/videoN, gst:PIPELINE or ros2:/camera");
     auto* ipf = track->add_option("--init-pose-file", to.init_pose_file, "File with 'tx ty tz rx ry rz' (T_cam_obj)");
     auto* ip = track->add_option("--init-pose", init_pose_str, "Initial T_cam_obj: \"tx ty tz rx ry rz\" (m, rad)");
     ipf->excludes(ip);
-    track->add_option("--output,--out", to.output_csv, "Pose CSV to write")->required();
-    track->add_option("--overlay", to.overlay, "Overlay video (.avi/.mp4) or folder of PNGs");
+    track->add_option("--output,--out", to.output_csv, "Pose CSV to write");
+    app::SceneTrackOptions sto;
+    add_scene_track_options(track, sto);
+    track->add_option("--overlay", to.overlay, "Overlay video (.avi/.mp4) or folder of PNGs; with --scene a folder, DIR/<camera>/ per camera");
     track->add_option("--gt", to.gt_csv, "Ground-truth CSV: print accuracy");
     track->add_option("--fps", to.fps,
                       "Input frame rate for the time stamps (default: the video's own rate, else 1 / filter.frame_interval)")
@@ -405,6 +431,22 @@ int main(int argc, char** argv) {
       return 0;
     }
     if (*track) {
+      if (auto usage = check_track_usage(track); !usage.empty()) {
+        fmt::print(stderr, "v4r track: error: {}\nRun with --help for more information.\n", usage);
+        return 106;  // CLI11's code for a missing required option
+      }
+      if (!sto.scene_path.empty()) {
+        sto.warnings = !no_warnings;
+        if (progress) sto.progress = 1;
+        sto.fps = to.fps;
+        sto.overlay_dir = to.overlay;
+        sto.quiet = to.quiet;
+        if (auto c = configure(sto.params, config_file, sets); !c) {
+          fmt::print(stderr, "v4r track: error: {}\n", c.error().to_string());
+          return 1;
+        }
+        return app::cmd_track_scene(sto);
+      }
       if (!init_pose_str.empty()) {
         auto p = io::parse_pose_numbers(init_pose_str, "--init-pose");
         if (!p) {

@@ -11,6 +11,7 @@
 
 #include "app.hpp"
 #include "plausibility.hpp"
+#include "pose_csv.hpp"
 #include "progress.hpp"
 #include "v4r/io/camera_io.hpp"
 #include "v4r/io/frame_source.hpp"
@@ -131,11 +132,7 @@ Expected<TrackSummary> run_track(const TrackOptions& opt) {
     }
     csv = std::fopen(opt.output_csv.c_str(), "w");
     if (!csv) return make_error(opt.output_csv, 0, 0, "cannot open output CSV for writing");
-    std::fprintf(csv,
-                 "frame,tx,ty,tz,qw,qx,qy,qz,cycle_ms,status,quality,features_visible,features_found,features_used,"
-                 "outliers,rms_px,lines_used,circle_points_used,junctions_used,degrade_level,"
-                 "f_tx,f_ty,f_tz,f_qw,f_qx,f_qy,f_qz,vx,vy,vz,wx,wy,wz,stamp_s,"
-                 "sigma_tx,sigma_ty,sigma_tz,sigma_rx,sigma_ry,sigma_rz,evidence\n");
+    std::fputs(kPoseCsvHeader, csv);
   }
   struct Closer {
     std::FILE* f;
@@ -201,20 +198,18 @@ Expected<TrackSummary> run_track(const TrackOptions& opt) {
     if (r.report.status == scene::TrackStatus::kLost) ++s.lost;
     if (r.report.status == scene::TrackStatus::kDegraded) ++s.degraded;
     if (csv) {
-      const Eigen::Quaterniond q = io::canonical(r.T_cam_obj.quaternion());
-      const auto& t = r.T_cam_obj.translation();
-      const Eigen::Quaterniond fq = io::canonical(r.T_cam_obj_filtered.quaternion());
-      const auto& ft = r.T_cam_obj_filtered.translation();
-      const auto& v = r.velocity;
-      const geometry::Vector6d sd = r.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
-      std::fprintf(csv,
-                   "%d,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.4f,%s,%.3f,%d,%d,%d,%d,%.3f,%d,%d,%d,%d,"
-                   "%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6f,%.4g,%.4g,%.4g,%.4g,%.4g,%.4g,%.3f\n",
-                   i, t.x(), t.y(), t.z(), q.w(), q.x(), q.y(), q.z(), r.cycle_ms, scene::to_string(r.report.status),
-                   r.report.quality, r.report.features_visible, r.report.features_found, features_used(tracker->scene()),
-                   r.report.outliers, r.report.rms_px, r.report.lines_used, r.report.circle_points_used,
-                   r.report.junctions_used, r.degrade_level, ft.x(), ft.y(), ft.z(), fq.w(), fq.x(), fq.y(), fq.z(),
-                   v[0], v[1], v[2], v[3], v[4], v[5], stamp, sd[0], sd[1], sd[2], sd[3], sd[4], sd[5], r.report.evidence);
+      PoseCsvRow row;
+      row.frame = i;
+      row.pose = r.T_cam_obj;
+      row.filtered = r.T_cam_obj_filtered;
+      row.velocity = r.velocity;
+      row.covariance = r.covariance;
+      row.cycle_ms = r.cycle_ms;
+      row.features_used = features_used(tracker->scene());
+      row.degrade_level = r.degrade_level;
+      row.stamp_s = stamp;
+      row.report = &r.report;
+      write_pose_csv_row(csv, row);
     }
     if (!opt.overlay.empty()) {
       cv::Mat vis;
