@@ -538,3 +538,60 @@ TEST(PoseFilter, AdaptiveNoiseHoldsARestingObjectStillAndFollowsAJumpAtOnce) {
   EXPECT_DOUBLE_EQ(f.noise_scale(), 1.0);
   EXPECT_GT(f.pose().translation().x(), 0.004);
 }
+
+TEST(PoseFilter, BlockUpdatesEqualThePlainTwelveByTwelveFormulas) {
+  // The filter computes its time and measurement updates by 6x6 blocks; here the plain forms:
+  // P' = F P F^T + B Q B^T and the Joseph form followed by G P G^T, on a moving object with
+  // noisy measurements.
+  PoseFilterParams p;
+  PoseFilter f(p);
+  std::mt19937 rng(5);
+  std::normal_distribution<double> n(0.0, 1.0);
+  Matrix6d cov = Matrix6d::Zero();
+  cov.diagonal() << 4e-6, 4e-6, 1e-5, 1e-4, 1e-4, 3e-5;
+  SE3 truth = SE3::exp((Vector6d() << 0.05, -0.02, 0.6, 0.3, -0.2, 0.1).finished());
+  f.reset(truth, cov);
+  const double dt = 1.0 / 30.0;
+  for (int k = 0; k < 60; ++k) {
+    const Matrix12d P0 = f.covariance();
+    const Vector6d vel = f.velocity();
+    // Plain process noise: per-axis blocks mapped with B = diag(Bt, Bt), Bt = [I, hat(t); 0, I].
+    const SE3 T_pred = SE3::exp(vel * dt) * f.pose();
+    Matrix12d Q = Matrix12d::Zero();
+    for (int i = 0; i < 6; ++i) {
+      const double s = i < 3 ? p.accel_noise : p.angular_accel_noise, q = s * s * p.reference_dt;
+      Q(i, i) = q * dt * dt * dt / 3.0;
+      Q(i, 6 + i) = Q(6 + i, i) = q * dt * dt / 2.0;
+      Q(6 + i, 6 + i) = q * dt;
+    }
+    Matrix12d B = Matrix12d::Identity();
+    B.block<3, 3>(0, 3) = v4r::geometry::hat(f.pose().translation());
+    B.block<3, 3>(6, 9) = B.block<3, 3>(0, 3);
+    const Matrix12d F = PoseFilter::transition_jacobian(vel, dt);
+    const Matrix12d P_pred = F * P0 * F.transpose() + B * Q * B.transpose();
+    EXPECT_LE((f.process_noise(dt) - B * Q * B.transpose()).norm(), 1e-12 * (B * Q * B.transpose()).norm());
+    f.predict(dt);
+    ASSERT_LE((f.covariance() - P_pred).norm(), 1e-9 * P_pred.norm()) << "predict, frame " << k;
+    EXPECT_LE((f.pose().translation() - T_pred.translation()).norm(), 1e-12);
+
+    truth = SE3::exp((Vector6d() << 0.002, 0.001, -0.001, 0.01, 0.004, -0.006).finished()) * truth;
+    Vector6d noise;
+    for (int i = 0; i < 6; ++i) noise(i) = n(rng) * std::sqrt(cov(i, i));
+    const SE3 meas = SE3::exp(noise) * truth;
+    // Plain measurement update.
+    const Matrix12d P1 = f.covariance();
+    const Vector6d y = (meas * f.pose().inverse()).log();
+    const Matrix6d S = P1.topLeftCorner<6, 6>() + cov;
+    const Eigen::Matrix<double, 12, 6> K = P1.leftCols<6>() * S.inverse();
+    Matrix12d IKH = Matrix12d::Identity();
+    IKH.leftCols<6>() -= K;
+    Matrix12d P_upd = IKH * P1 * IKH.transpose() + K * cov * K.transpose();
+    const Vector12d dx = K * y;
+    Matrix12d G = Matrix12d::Identity();
+    G.topLeftCorner<6, 6>() = v4r::geometry::left_jacobian(dx.head<6>());
+    P_upd = (G * P_upd * G.transpose()).eval();
+    f.update(meas, cov);
+    ASSERT_LE((f.covariance() - P_upd).norm(), 1e-9 * P_upd.norm()) << "update, frame " << k;
+    EXPECT_LE((f.velocity() - (vel + dx.tail<6>())).norm(), 1e-9 * (1.0 + vel.norm()));
+  }
+}
