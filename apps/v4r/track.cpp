@@ -12,6 +12,7 @@
 #include "app.hpp"
 #include "plausibility.hpp"
 #include "progress.hpp"
+#include "v4r/detection/template_cache.hpp"
 #include "v4r/io/camera_io.hpp"
 #include "v4r/io/frame_source.hpp"
 #include "v4r/io/pose_io.hpp"
@@ -91,6 +92,43 @@ Timing choose_timing(const TrackOptions& opt, const io::FrameSource& src) {
   return {1.0 / opt.params.frame_interval_s, false, false, "filter.frame_interval"};
 }
 
+/// Lets the tracker search for the object (issue 10): the detector's templates for this model and
+/// camera, from the cache or built (a few seconds, once per model, camera and view range).
+Expected<void> enable_search(pipeline::SingleObjectTracker& tracker, const TrackOptions& opt,
+                             const model::Model& model, const geometry::PinholeCamera& cam) {
+  detection::CacheReport rep;
+  auto ts = detection::load_or_build(model, cam, opt.detect, opt.cache_dir, &rep);
+  if (!ts) return ts.error();
+  if (rep.built && !opt.quiet)
+    fmt::print(stderr, "v4r track: built the detector's templates ({}){}\n", rep.reason,
+               rep.written ? ", cached in " + rep.path : ", not cached: " + rep.write_error);
+  tracker.enable_search(*ts, opt.search, opt.detect);
+  return {};
+}
+
+/// The CSV row of a frame; a frame without a pose (`searching`) has its pose fields empty.
+void write_csv_row(std::FILE* csv, int i, double stamp, const pipeline::FrameResult& r, int used) {
+  const bool pose = r.report.status != scene::TrackStatus::kSearching;
+  std::string p1 = ",,,,,,", p2 = ",,,,,,,,,,,,", p3 = ",,,,,";
+  if (pose) {
+    const Eigen::Quaterniond q = io::canonical(r.T_cam_obj.quaternion());
+    const auto& t = r.T_cam_obj.translation();
+    const Eigen::Quaterniond fq = io::canonical(r.T_cam_obj_filtered.quaternion());
+    const auto& ft = r.T_cam_obj_filtered.translation();
+    const auto& v = r.velocity;
+    const geometry::Vector6d sd = r.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
+    p1 = fmt::format("{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g}", t.x(), t.y(), t.z(), q.w(), q.x(), q.y(), q.z());
+    p2 = fmt::format("{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.9g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g},{:.6g}", ft.x(),
+                     ft.y(), ft.z(), fq.w(), fq.x(), fq.y(), fq.z(), v[0], v[1], v[2], v[3], v[4], v[5]);
+    p3 = fmt::format("{:.4g},{:.4g},{:.4g},{:.4g},{:.4g},{:.4g}", sd[0], sd[1], sd[2], sd[3], sd[4], sd[5]);
+  }
+  std::fprintf(csv, "%d,%s,%.4f,%s,%.3f,%d,%d,%d,%d,%.3f,%d,%d,%d,%d,%s,%.6f,%s,%.3f\n", i, p1.c_str(), r.cycle_ms,
+               scene::to_string(r.report.status), r.report.quality, r.report.features_visible,
+               r.report.features_found, used, r.report.outliers, r.report.rms_px, r.report.lines_used,
+               r.report.circle_points_used, r.report.junctions_used, r.degrade_level, p2.c_str(), stamp, p3.c_str(),
+               r.report.evidence);
+}
+
 }  // namespace
 
 Expected<TrackSummary> run_track(const TrackOptions& opt) {
@@ -108,16 +146,18 @@ Expected<TrackSummary> run_track(const TrackOptions& opt) {
     if (!p) return p.error();
     numbers = *p;
     pose_source = opt.init_pose_file;
-  } else {
-    return make_error("an initial pose is needed: --init-pose-file FILE or --init-pose \"tx ty tz rx ry rz\"");
+  } else if (!opt.search.enabled) {
+    return make_error("an initial pose is needed (search.enabled is false): --init-pose-file FILE or --init-pose \"tx ty tz rx ry rz\"");
   }
+  const bool have_pose = !pose_source.empty();  // else the object is searched for from frame 0
   const geometry::SE3 init = io::pose_from_numbers(numbers);
-  if (init.translation().z() <= 0.0)
+  if (have_pose && init.translation().z() <= 0.0)
     return make_error("the initial pose puts the object behind the camera (tz <= 0)");
   std::vector<std::string> warnings;
   if (opt.warnings) {
     for (auto& w : check_model_size(**model, opt.model_path)) warnings.push_back(std::move(w));
-    for (auto& w : check_pose(numbers, pose_source)) warnings.push_back(std::move(w));
+    if (have_pose)
+      for (auto& w : check_pose(numbers, pose_source)) warnings.push_back(std::move(w));
   }
   auto source = io::FrameSource::open(opt.input);
   if (!source) return source.error();
@@ -153,6 +193,7 @@ Expected<TrackSummary> run_track(const TrackOptions& opt) {
   ProgressLine bar(progress && !opt.quiet, (*source)->size_hint());
   cv::Mat frame, grey;
   double first_file_time = -1.0;
+  bool search_on = false;  // with an initial pose, the search is set up when the object is first lost
   for (int i = 0;; ++i) {
     auto more = (*source)->next(frame);
     if (!more) return more.error();
@@ -166,12 +207,18 @@ Expected<TrackSummary> run_track(const TrackOptions& opt) {
                         fmt::format("image is {}x{} but the camera calibration {} is {}x{}", frame.cols, frame.rows,
                                     opt.camera_path, cam->width, cam->height));
     if (i == 0) {
-      if (opt.warnings)
+      if (opt.warnings && have_pose)
         for (auto& w : check_projection(**model, *cam, init)) warnings.push_back(std::move(w));
       for (const std::string& w : warnings) fmt::print(stderr, "v4r track: warning: {}\n", w);
       s.warnings = warnings.size();
       tracker.emplace(*model, *cam, opt.params);
-      tracker->set_pose(init);
+      if (have_pose) {
+        tracker->set_pose(init);
+      } else {
+        if (auto e = enable_search(*tracker, opt, **model, *cam); !e) return e.error();
+        tracker->start_search();
+        search_on = true;
+      }
     }
     if (frame.channels() == 3) {
       cv::cvtColor(frame, grey, cv::COLOR_BGR2GRAY);
@@ -192,6 +239,13 @@ Expected<TrackSummary> run_track(const TrackOptions& opt) {
       stamp = t - first_file_time;
     }
     const pipeline::FrameResult r = tracker->track(io::as_view(grey), io::as_colour_view(frame), stamp);
+    if (!search_on && opt.search.enabled && r.report.status == scene::TrackStatus::kLost) {
+      if (auto e = enable_search(*tracker, opt, **model, *cam); !e) return e.error();
+      search_on = true;
+    }
+    if (r.search.searched) s.search_ms.push_back(r.search.search_ms);
+    if (r.report.status == scene::TrackStatus::kSearching) ++s.searching;
+    if (r.report.status == scene::TrackStatus::kTracking && s.first_tracking < 0) s.first_tracking = i;
     s.poses.push_back(r.T_cam_obj);
     s.cycle_ms.push_back(r.cycle_ms);
     s.visibility_ms.push_back(r.visibility_ms);
@@ -200,22 +254,7 @@ Expected<TrackSummary> run_track(const TrackOptions& opt) {
     s.features_used.push_back(r.report.features_used);
     if (r.report.status == scene::TrackStatus::kLost) ++s.lost;
     if (r.report.status == scene::TrackStatus::kDegraded) ++s.degraded;
-    if (csv) {
-      const Eigen::Quaterniond q = io::canonical(r.T_cam_obj.quaternion());
-      const auto& t = r.T_cam_obj.translation();
-      const Eigen::Quaterniond fq = io::canonical(r.T_cam_obj_filtered.quaternion());
-      const auto& ft = r.T_cam_obj_filtered.translation();
-      const auto& v = r.velocity;
-      const geometry::Vector6d sd = r.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
-      std::fprintf(csv,
-                   "%d,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.4f,%s,%.3f,%d,%d,%d,%d,%.3f,%d,%d,%d,%d,"
-                   "%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6f,%.4g,%.4g,%.4g,%.4g,%.4g,%.4g,%.3f\n",
-                   i, t.x(), t.y(), t.z(), q.w(), q.x(), q.y(), q.z(), r.cycle_ms, scene::to_string(r.report.status),
-                   r.report.quality, r.report.features_visible, r.report.features_found, features_used(tracker->scene()),
-                   r.report.outliers, r.report.rms_px, r.report.lines_used, r.report.circle_points_used,
-                   r.report.junctions_used, r.degrade_level, ft.x(), ft.y(), ft.z(), fq.w(), fq.x(), fq.y(), fq.z(),
-                   v[0], v[1], v[2], v[3], v[4], v[5], stamp, sd[0], sd[1], sd[2], sd[3], sd[4], sd[5], r.report.evidence);
-    }
+    if (csv) write_csv_row(csv, i, stamp, r, features_used(tracker->scene()));
     if (!opt.overlay.empty()) {
       cv::Mat vis;
       if (frame.channels() == 3) {
@@ -247,7 +286,12 @@ Expected<TrackSummary> run_track(const TrackOptions& opt) {
 }
 
 void print_report(const TrackSummary& s, const std::vector<geometry::SE3>* truth) {
-  fmt::print("frames {}  lost {}  degraded {}\n", s.frames, s.lost, s.degraded);
+  fmt::print("frames {}  lost {}  degraded {}  searching {}\n", s.frames, s.lost, s.degraded, s.searching);
+  if (!s.search_ms.empty()) {
+    const auto sp = pipeline::percentiles(s.search_ms);
+    fmt::print("search: {} frames, median {:.1f} ms, p99 {:.1f} ms; first tracking frame {}\n", s.search_ms.size(),
+               sp.median, sp.p99, s.first_tracking);
+  }
   if (truth) {
     const pipeline::AccuracyStats a = pipeline::evaluate(s.poses, *truth);
     fmt::print("accuracy vs ground truth ({} frames):\n", a.frames);
@@ -288,6 +332,11 @@ int cmd_track(const TrackOptions& opt) {
     if (s->dropped > 0) fmt::print("live input: {} frames dropped (the tracker took the newest)\n", s->dropped);
     if (!opt.output_csv.empty()) fmt::print("wrote {} ({} rows)\n", opt.output_csv, s->frames);
     if (!opt.overlay.empty()) fmt::print("wrote {} (overlay)\n", opt.overlay);
+  }
+  if (s->searching + s->lost == s->frames && s->searching > 0) {
+    fmt::print(stderr, "v4r track: error: the object was not found on any frame ({} frames searched){}\n",
+               s->searching, "; check the model's units, the camera and the view range (detect.views.*)");
+    return 3;
   }
   if (s->lost == s->frames) {
     fmt::print(stderr, "v4r track: error: the object was lost on every frame ({} of {}){}\n", s->lost, s->frames,

@@ -293,7 +293,7 @@ void VisionCycle::plan_budget(scene::Scene& scene) {
   auto predicted_us = [&](int rows, int circle_samples) {
     long samples = 0;
     for (const scene::Object& o : scene.objects()) {
-      if (o.status == scene::TrackStatus::kUninitialised) continue;
+      if (o.status == scene::TrackStatus::kUninitialised || o.status == scene::TrackStatus::kSearching) continue;
       for (const scene::View& v : o.views) {
         for (const scene::LineFeature& f : v.lines)
           if (f.visible && !f.ambiguous && !f.dropped) samples += rows;
@@ -316,7 +316,7 @@ void VisionCycle::plan_budget(scene::Scene& scene) {
   report_.degrade_level = 2;
   drop_scores_.clear();
   for (const scene::Object& o : scene.objects()) {
-    if (o.status == scene::TrackStatus::kUninitialised) continue;
+    if (o.status == scene::TrackStatus::kUninitialised || o.status == scene::TrackStatus::kSearching) continue;
     for (const scene::View& v : o.views) {
       for (const scene::LineFeature& f : v.lines)
         if (f.visible && !f.ambiguous) drop_scores_.push_back(static_cast<float>((f.predicted.b - f.predicted.a).norm()));
@@ -924,6 +924,11 @@ const CycleReport& VisionCycle::process(scene::Scene& scene, std::span<const Cam
     ObjectReport& rep = report_.objects[oi];
     rep = ObjectReport{};
     if (obj.status == scene::TrackStatus::kUninitialised) continue;
+    // Issue 10: an object being searched for is left to pipeline::ObjectSearch.
+    if (obj.status == scene::TrackStatus::kSearching) {
+      rep.status = obj.status;
+      continue;
+    }
     // One object's fault (a bug, bad_alloc, an OpenCV exception) must not end the others' cycle.
     try {
       rep.search_level = std::min(obj.bad_frames, p_.recovery.max_search_level);
@@ -966,7 +971,7 @@ const CycleReport& VisionCycle::process(scene::Scene& scene, std::span<const Cam
   for (std::size_t oi = 0; oi < objects.size(); ++oi) {
     scene::Object& obj = objects[oi];
     ObjectReport& rep = report_.objects[oi];
-    if (obj.status == scene::TrackStatus::kUninitialised) continue;
+    if (obj.status == scene::TrackStatus::kUninitialised || obj.status == scene::TrackStatus::kSearching) continue;
     try {
       if (object_hook_) object_hook_(obj);
       for (scene::View& view : obj.views) {

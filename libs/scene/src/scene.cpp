@@ -11,6 +11,7 @@ const char* to_string(TrackStatus s) {
     case TrackStatus::kTracking: return "tracking";
     case TrackStatus::kDegraded: return "degraded";
     case TrackStatus::kLost: return "lost";
+    case TrackStatus::kSearching: return "searching";
   }
   return "unknown";
 }
@@ -72,6 +73,16 @@ void Scene::set_pose(std::size_t object, const geometry::SE3& T_ref_obj) {
       a.frames_missing = 0;
     }
   }
+}
+
+void Scene::start_search(std::size_t object) {
+  Object& o = objects_.at(object);
+  o.status = TrackStatus::kSearching;
+  o.measured = TrackStatus::kLost;
+  o.quality = 0.0;
+  o.evidence = 0.0;
+  o.confirmed = false;
+  o.velocity.setZero();
 }
 
 long Scene::find_object(const std::string& name) const {
