@@ -5,6 +5,7 @@
 // return in >= 95 % of the events, and never say `tracking` on a frame without the object.
 #include <algorithm>
 #include <cstdio>
+#include <cstdlib>
 #include <memory>
 #include <random>
 #include <string>
@@ -107,6 +108,17 @@ TEST(ObjectSearch, FindsTheObjectWithoutAPoseAndAgainAfterTwentyFramesOutOfView)
         status.push_back(fr.report.status);
         pose.push_back(fr.T_cam_obj);
         if (fr.search.searched) search_ms.push_back(fr.search.search_ms);
+        if (std::getenv("V4R_SEARCH_DEBUG") && seq[i].has_object) {
+          const auto e = detection::symmetric_pose_error(fr.T_cam_obj, seq[i].T, sym);
+          const auto elev = [&](const geometry::SE3& T) {
+            const Eigen::Vector3d eye = T.inverse().translation() - detection::model_extent(*model).centre;
+            return std::asin(eye.z() / eye.norm()) / kDeg;
+          };
+          std::printf("  %s %u frame %zu: %s tried %d best %.2f found %d locked %d ev %.2f err %.1f mm %.1f deg el %.1f truth el %.1f d %.3f truth d %.3f\n", name,
+                      seed, i, scene::to_string(fr.report.status), fr.search.tried, fr.search.best_evidence,
+                      fr.search.found, fr.search.locked, fr.report.evidence, 1e3 * e.translation, e.rotation / kDeg,
+                      elev(fr.T_cam_obj), elev(seq[i].T), fr.T_cam_obj.translation().norm(), seq[i].T.translation().norm());
+        }
         if (!seq[i].has_object) {
           ++empty_frames;
           if (fr.report.status == scene::TrackStatus::kTracking) ++empty_tracking;

@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "v4r/detection/symmetry.hpp"
+
 namespace v4r::pipeline {
 
 namespace {
@@ -33,6 +35,8 @@ void add_search_params(ParamRegistry& r, ObjectSearchParams& p) {
   r.add("search.refine_cycles", &p.refine_cycles, 1, 20, "", "vision cycles run on a hypothesis (wide windows, then normal)");
   r.add("search.accept_evidence", &p.accept_evidence, 0.0, 1.0, "",
         "share of the projected model's edge samples the image must confirm for a found pose");
+  r.add("search.view_margin", &p.view_margin_deg, 0.0, 180.0, "deg",
+        "a found pose must lie in the detector's view range (detect.views.*) widened by this");
   r.add("search.confirm_translation", &p.confirm_translation_m, 0.0, 10.0, "m",
         "a found pose is confirmed when the next frame finds it again this close");
   r.add("search.confirm_rotation", &p.confirm_rotation_deg, 0.0, 180.0, "deg", "... and within this angle");
@@ -65,9 +69,34 @@ void ObjectSearch::add_object(const scene::Scene& scene, std::size_t object,
   const detection::ModelExtent ext = detection::model_extent(*objs[object].model);
   s.radius = ext.radius;
   s.centre = ext.centre;
+  s.range = detection::resolve_view_range(dp_.views, ext.radius, scene.cameras()[0].intrinsics.focal());
+  s.symmetries = detection::model_symmetries(*objs[object].model);
+  if (s.symmetries.empty()) s.symmetries.emplace_back();
   s.active = true;
   // Allocate the probe cycle's buffers now (a cycle on an empty image set allocates them).
   probe_.process(probe_scene_, {}, 0.0);
+}
+
+bool ObjectSearch::in_view_range(const Slot& s, const geometry::SE3& T) const {
+  const double m = p_.view_margin_deg;
+  const detection::ViewRange& v = s.range;
+  const double dist_ratio = 1.0 + m / 45.0;
+  for (const geometry::SE3& S : s.symmetries) {
+    const geometry::SE3 TS = T * S;
+    const Eigen::Vector3d eye = TS.inverse().translation() - s.centre;
+    const double d = eye.norm();
+    if (d < v.distance_min_m / dist_ratio || d > v.distance_max_m * dist_ratio) continue;
+    const double el = std::asin(std::clamp(eye.z() / std::max(d, 1e-12), -1.0, 1.0)) / kDeg;
+    if (el < v.elevation_min_deg - m || el > v.elevation_max_deg + m) continue;
+    // In-plane turn: where the object's z axis points in the image (up at 0, see geometry::look_at).
+    const Eigen::Vector3d z = TS.rotation().col(2);
+    if (std::hypot(z.x(), z.y()) > 0.2) {  // (seen from straight above, the turn is the azimuth's)
+      const double ip = std::atan2(z.x(), -z.y()) / kDeg;
+      if (ip < v.inplane_min_deg - m || ip > v.inplane_max_deg + m) continue;
+    }
+    return true;
+  }
+  return false;
 }
 
 double ObjectSearch::refine(std::size_t object, const CameraImage& img, double stamp_s, geometry::SE3& T) {
@@ -78,11 +107,21 @@ double ObjectSearch::refine(std::size_t object, const CameraImage& img, double s
     probe_.process(probe_scene_, std::span<const CameraImage>(&img, 1), stamp_s);
     if (o.status == scene::TrackStatus::kUninitialised) break;  // (a fault in the probe: give up on it)
   }
-  const bool ok = o.status == scene::TrackStatus::kTracking && o.evidence >= p_.accept_evidence;
-  const double evidence = o.evidence;
+  const bool ok = o.status == scene::TrackStatus::kTracking && o.evidence >= p_.accept_evidence &&
+                  in_view_range(slots_[object], o.T_ref_obj);
+  // Rank: edge samples confirmed, times the square of their share, weighed down by the pose
+  // solve's RMS residual as the cycle's quality is (1 / (1 + (rms / 1.5 px)^2)). An edge image
+  // can be fitted by more than one pose of a box (a Necker-like reversal: turned and farther, its
+  // projected edges on the image's edges and on texture): the false one explains as many samples
+  // or more, but leaves more of its own unconfirmed or fits them only to a pixel or so.
+  int matched = 0;
+  for (const scene::View& v : o.views) matched += v.evidence_matched;
+  const double rms = probe_.last_report().objects[object].rms_px;
+  const double rank = matched * o.evidence * o.evidence / (1.0 + (rms / 1.5) * (rms / 1.5));
+  last_evidence_ = o.evidence;
   T = o.T_ref_obj;
   o.status = scene::TrackStatus::kUninitialised;  // the probe object rests until the next hypothesis
-  return ok ? evidence : -1.0;
+  return ok ? rank : -1.0;
 }
 
 void ObjectSearch::search(scene::Scene& scene, std::size_t object, const CameraImage& img, double stamp_s,
@@ -91,13 +130,14 @@ void ObjectSearch::search(scene::Scene& scene, std::size_t object, const CameraI
   const auto t0 = Clock::now();
   rep.searched = true;
   ++s.search_frames;
-  double best = -1.0;
+  double best = -1.0, best_evidence = 0.0;
   geometry::SE3 T_best;
   const auto consider = [&](geometry::SE3 T) {
     ++rep.tried;
     const double e = refine(object, img, stamp_s, T);
     if (e > best) {
       best = e;
+      best_evidence = last_evidence_;
       T_best = T;
     }
     return e;
@@ -105,12 +145,8 @@ void ObjectSearch::search(scene::Scene& scene, std::size_t object, const CameraI
   // (1) Last frame's candidate, tracked on this frame: confirmed when it stays put.
   if (s.have_candidate) {
     geometry::SE3 T = s.T_candidate;
-    ++rep.tried;
-    const double e = refine(object, img, stamp_s, T);
-    if (e > best) {
-      best = e;
-      T_best = T;
-    }
+    const double e = consider(T);
+    T = T_best;
     const bool close = e >= 0.0 && (T.translation() - s.T_candidate.translation()).norm() <= p_.confirm_translation_m &&
                        geometry::rotation_angle_between(T, s.T_candidate) <= p_.confirm_rotation_deg * kDeg;
     if (close) {
@@ -118,14 +154,13 @@ void ObjectSearch::search(scene::Scene& scene, std::size_t object, const CameraI
       scene.set_pose(object, T_ref);
       scene::Object& o = scene.objects()[object];
       o.status = scene::TrackStatus::kTracking;
-      o.evidence = e;
-      o.quality = e;
+      o.evidence = o.quality = best_evidence;
       s.have_candidate = false;
       s.have_last = true;
       s.T_last = T;
       s.search_frames = 0;
       rep.found = rep.locked = true;
-      rep.best_evidence = e;
+      rep.best_evidence = best_evidence;
       rep.search_ms = ms_between(t0, Clock::now());
       return;
     }
@@ -148,7 +183,7 @@ void ObjectSearch::search(scene::Scene& scene, std::size_t object, const CameraI
     const int n = std::min<int>(r.hypotheses, std::min<int>(p_.hypotheses, static_cast<int>(hyp_.size())));
     for (int k = 0; k < n; ++k) consider(hyp_[static_cast<std::size_t>(k)].T_cam_obj);
   }
-  rep.best_evidence = std::max(0.0, best);
+  rep.best_evidence = best >= 0.0 ? best_evidence : 0.0;
   s.have_candidate = best >= 0.0;
   if (s.have_candidate) {
     s.T_candidate = T_best;

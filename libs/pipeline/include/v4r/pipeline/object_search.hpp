@@ -21,11 +21,16 @@ struct ObjectSearchParams {
   int local_frames = 10;         ///< search frames on which perturbed restarts around the last pose are tried
   int restarts = 4;              ///< perturbed restarts per search frame (around the last pose)
   double restart_shift = 0.5;    ///< restart offsets across the view: this times the model's bounding radius
-  int hypotheses = 4;            ///< best detector hypotheses refined by the tracker per search frame
+  int hypotheses = 10;           ///< best detector hypotheses refined by the tracker per search frame
   int refine_cycles = 3;         ///< vision cycles run on a hypothesis (first wide windows, then normal)
   /// A refined hypothesis is accepted when the cycle reports `tracking` on it and this share of
   /// the projected model's edge samples is confirmed by the image (features::EdgeEvidence).
-  double accept_evidence = 0.6;
+  double accept_evidence = 0.7;
+  /// A found pose must lie in the detector's view range (detect.views.*: elevation, in-plane
+  /// turn, distance) widened by this many degrees (distance: by the ratio 1 + margin / 45),
+  /// modulo the model's symmetries: an edge image can fit a turned and farther box as well as
+  /// the true one (a Necker-like ambiguity), and the range says which views can occur.
+  double view_margin_deg = 15.0;
   /// An accepted pose becomes `tracking` when the next frame, tracked from it, accepts it again
   /// within these limits (consistency over 2 frames).
   double confirm_translation_m = 0.03;
@@ -89,8 +94,13 @@ class ObjectSearch {
     geometry::SE3 T_candidate;
     double radius = 0.0;         // model bounding radius, m
     Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+    detection::ViewRange range;  // resolved for the model and camera
+    std::vector<geometry::SE3> symmetries;
   };
-  /// Refines T (camera frame) with the private cycle; returns the edge evidence if accepted, else -1.
+  /// T_cam_obj (or one of its symmetric equivalents) within the slot's view range and margin.
+  [[nodiscard]] bool in_view_range(const Slot& s, const geometry::SE3& T) const;
+  /// Refines T (camera frame) with the private cycle; returns its rank (edge samples the image
+  /// confirms) if accepted, else -1; its edge evidence (share) in last_evidence_.
   double refine(std::size_t object, const CameraImage& img, double stamp_s, geometry::SE3& T);
   void search(scene::Scene& scene, std::size_t object, const CameraImage& img, double stamp_s, SearchReport& rep);
 
@@ -101,6 +111,7 @@ class ObjectSearch {
   std::vector<Slot> slots_;
   std::vector<SearchReport> reports_;
   std::vector<detection::Hypothesis> hyp_;
+  double last_evidence_ = 0.0;
 };
 
 }  // namespace v4r::pipeline
