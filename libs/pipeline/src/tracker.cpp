@@ -50,9 +50,8 @@ FrameResult SingleObjectTracker::track(const image::ImageView& grey, const image
       r.report.quality = o.quality;
     }
     r.report.status = o.status;
-    r.cycle_ms += r.search.search_ms;  // the frame's whole tracking time
   }
-  r.cycle_ms = rep.cycle_ms;
+  r.cycle_ms = rep.cycle_ms + r.search.search_ms;  // the frame's whole tracking time
   r.visibility_ms = rep.visibility_ms;
   r.track_ms = rep.track_ms;
   r.solve_ms = rep.solve_ms;
