@@ -35,15 +35,21 @@ void ServiceSearch::build_loop(std::stop_token st) {
       jobs_.pop_front();
     }
     std::shared_ptr<const detection::TemplateSet> ts;
+    struct Stopped {};
     try {
       detection::CacheReport rep;
-      auto r = detection::load_or_build(*m, cam_, dp_, cache_dir_, &rep);
+      // A stop request (the server shutting down) abandons a build at the next view.
+      auto r = detection::load_or_build(*m, cam_, dp_, cache_dir_, &rep, [&st](std::size_t, std::size_t) {
+        if (st.stop_requested()) throw Stopped{};
+      });
       if (r) {
         ts = *r;
         if (rep.built) V4R_LOG_INFO("v4r serve: built the detector's templates of model '{}' ({})", m->name(), rep.reason);
       } else {
         V4R_LOG_ERROR("v4r serve: model '{}' cannot be searched for: {}", m->name(), r.error().to_string());
       }
+    } catch (const Stopped&) {
+      return;
     } catch (const std::exception& e) {
       V4R_LOG_ERROR("v4r serve: model '{}' cannot be searched for: {}", m->name(), e.what());
     }
@@ -59,7 +65,10 @@ void ServiceSearch::update(scene::Scene& scene, std::span<const pipeline::Camera
   for (std::size_t i = 0; i < objs.size(); ++i) {
     const model::Model* m = objs[i].model.get();
     if (!changed && searched_[i] != m) changed = true;
-    if (m && !entries_.contains(m)) {  // a new model: its templates are built on the builder thread
+    // A model whose object needs searching gets its templates built on the builder thread (the
+    // objects that track well cost no templates and no memory).
+    const bool wanted = objs[i].status == scene::TrackStatus::kSearching || objs[i].status == scene::TrackStatus::kLost;
+    if (m && wanted && !entries_.contains(m)) {
       entries_[m].model = objs[i].model;
       std::scoped_lock lock(mutex_);
       jobs_.push_back(objs[i].model);

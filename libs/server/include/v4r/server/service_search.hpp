@@ -19,9 +19,10 @@ namespace v4r::server {
 
 /// \brief The search of `v4r serve` (issue 10): objects without a pose (no SetPose yet) and objects
 /// lost for search.lost_frames frames are searched for by a pipeline::ObjectSearch, run on the
-/// tracking thread after each cycle. The detector's templates of every model in the scene are
-/// loaded or built (detection::load_or_build, cached) on a builder thread of their own, so that
-/// an AddModel never holds up the frames; an object is searched once its templates are there.
+/// tracking thread after each cycle. The detector's templates of a model whose object is
+/// searching or lost are loaded or built (detection::load_or_build, cached) on a builder thread
+/// of their own, so that the frames never wait for them; the object is searched once they are
+/// there (an object that tracks well costs no templates).
 /// update() allocates only when the scene's models changed or templates arrived.
 class ServiceSearch {
  public:
