@@ -10,6 +10,7 @@
 #include <gtest/gtest.h>
 
 #include "v4r/detection/detector_params.hpp"
+#include "v4r/pipeline/object_search.hpp"
 #include "v4r/pipeline/params.hpp"
 
 namespace {
@@ -58,6 +59,8 @@ TEST(Config, PrintsEveryParameterOfTheRegistryWithItsRange) {
   v4r::ParamRegistry reg = v4r::pipeline::make_registry(params);
   v4r::detection::DetectorParams detect_params;  // `v4r config` prints the detector's too
   v4r::detection::add_params(reg, detect_params);
+  v4r::pipeline::ObjectSearchParams search_params;  // and the search's (issue 10)
+  v4r::pipeline::add_search_params(reg, search_params);
   std::set<std::string> names;
   for (const v4r::ParamRegistry::Entry& e : reg.entries()) {
     names.insert(e.name);

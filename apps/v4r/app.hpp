@@ -30,6 +30,9 @@ struct TrackOptions {
   std::optional<io::PoseNumbers> init_pose;  ///< --init-pose as given
   std::string init_pose_file;
   pipeline::CycleParams params;
+  detection::DetectorParams detect;    ///< detect.*: the search's templates and detector
+  pipeline::ObjectSearchParams search;  ///< search.*: when and how the object is searched for
+  std::string cache_dir;               ///< template cache folder (empty: the default)
   double fps = 0.0;          ///< frame rate given by --fps; 0: the video's own rate, else filter.frame_interval
   bool file_times = false;   ///< time stamps from the image files' modification times
   double mesh_scale = 1.0;   ///< model units -> metres
@@ -42,6 +45,9 @@ struct TrackOptions {
 struct TrackSummary {
   int frames = 0;
   int lost = 0, degraded = 0;
+  int searching = 0;        ///< frames the object was searched for (no pose)
+  int first_tracking = -1;  ///< first frame reported `tracking` (-1: none)
+  std::vector<double> search_ms;  ///< per frame the search ran
   std::vector<geometry::SE3> poses;
   std::vector<double> cycle_ms, visibility_ms, track_ms, solve_ms;
   std::vector<int> features_used;

@@ -232,10 +232,13 @@ int cmd_bench(const RenderArgs& a, int repeat, double budget_ms) {
 /// Applies --config FILE and then each --set key=value to the cycle parameters (and the
 /// detector's, detect.*, when given; else they are checked and dropped until the cycle uses them).
 Expected<void> configure(pipeline::CycleParams& params, const std::string& config_file,
-                         const std::vector<std::string>& sets, detection::DetectorParams* detect = nullptr) {
+                         const std::vector<std::string>& sets, detection::DetectorParams* detect = nullptr,
+                         pipeline::ObjectSearchParams* search = nullptr) {
   ParamRegistry reg = pipeline::make_registry(params);
   detection::DetectorParams unused;
   detection::add_params(reg, detect ? *detect : unused);
+  pipeline::ObjectSearchParams unused_search;
+  pipeline::add_search_params(reg, search ? *search : unused_search);
   if (!config_file.empty()) {
     auto r = io::apply_config_file(config_file, reg);
     if (!r) return r;
@@ -332,6 +335,8 @@ int main(int argc, char** argv) {
     std::vector<std::string> sets;
     track->add_option("--config", config_file, "YAML file of tracker parameters (see `v4r config`)");
     track->add_option("--set", sets, "Set one parameter: --set track.rows=32 (repeatable)");
+    track->add_option("--cache-dir", to.cache_dir,
+                      "Folder of the detector's template cache (default $XDG_CACHE_HOME/v4r or ~/.cache/v4r)");
 
     RenderArgs ra;
     auto* render = app.add_subcommand("render", "Render a synthetic sequence with ground truth");
@@ -463,7 +468,7 @@ int main(int argc, char** argv) {
       to.mesh_scale = *scale;
       to.warnings = !no_warnings;
       if (progress) to.progress = 1;
-      if (auto c = configure(to.params, config_file, sets); !c) {
+      if (auto c = configure(to.params, config_file, sets, &to.detect, &to.search); !c) {
         fmt::print(stderr, "v4r track: error: {}\n", c.error().to_string());
         return 1;
       }
@@ -472,13 +477,17 @@ int main(int argc, char** argv) {
     if (*config) {
       pipeline::CycleParams params;
       detection::DetectorParams dparams;
-      if (auto c = configure(params, cfg_in, cfg_sets, &dparams); !c) {
+      pipeline::ObjectSearchParams sparams;
+      if (auto c = configure(params, cfg_in, cfg_sets, &dparams, &sparams); !c) {
         fmt::print(stderr, "v4r config: error: {}\n", c.error().to_string());
         return 1;
       }
       ParamRegistry reg = pipeline::make_registry(params);
       detection::add_params(reg, dparams);
-      fmt::print("# v4r tracker configuration (v4r track --config FILE; detect.*: v4r detect / prepare)\n{}", reg.to_yaml());
+      pipeline::add_search_params(reg, sparams);
+      fmt::print("# v4r tracker configuration (v4r track --config FILE; detect.*: v4r detect / prepare and the "
+                 "search of track and serve; search.*: when an object is searched for)\n{}",
+                 reg.to_yaml());
       return 0;
     }
     if (*prepare_cmd || *detect_cmd) return detect_exit;

@@ -79,9 +79,9 @@ int run_serve(ServeArgs& a) {
     if (const char* t = std::getenv("V4R_SERVE_TOKEN")) a.opt.token = t;
   }
   ParamRegistry reg = pipeline::make_registry(a.opt.params);
-  // detect.* (in files written by `v4r config`) are checked; serve does not detect yet.
-  detection::DetectorParams detect_params;
-  detection::add_params(reg, detect_params);
+  // detect.* and search.*: objects without SetPose, and lost ones, are searched for (issue 10).
+  detection::add_params(reg, a.opt.detect);
+  pipeline::add_search_params(reg, a.opt.search);
   if (!a.config_file.empty()) {
     if (auto r = io::apply_config_file(a.config_file, reg); !r) {
       fmt::print(stderr, "v4r serve: error: {}\n", r.error().to_string());
@@ -166,6 +166,8 @@ void add_serve_command(CLI::App& app, int& exit_code) {
                     "inside the first (default: the folder serve was started in)");
   serve->add_option("--log-dir", a->opt.log_dir,
                     "Folder that `Log on file=` may write (default: none, `file=` is refused)");
+  serve->add_option("--cache-dir", a->opt.cache_dir,
+                    "Folder of the detector's template cache (default $XDG_CACHE_HOME/v4r or ~/.cache/v4r)");
   serve->add_option("--config", a->config_file, "YAML file of tracker parameters (see `v4r config`)");
   serve->add_option("--set", a->sets, "Set one parameter: --set track.rows=32 (repeatable)");
   serve->add_flag("--ros2", a->ros2,

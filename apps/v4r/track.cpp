@@ -13,6 +13,7 @@
 #include "plausibility.hpp"
 #include "pose_csv.hpp"
 #include "progress.hpp"
+#include "v4r/detection/template_cache.hpp"
 #include "v4r/io/camera_io.hpp"
 #include "v4r/io/frame_source.hpp"
 #include "v4r/io/pose_io.hpp"
@@ -92,6 +93,20 @@ Timing choose_timing(const TrackOptions& opt, const io::FrameSource& src) {
   return {1.0 / opt.params.frame_interval_s, false, false, "filter.frame_interval"};
 }
 
+/// Lets the tracker search for the object (issue 10): the detector's templates for this model and
+/// camera, from the cache or built (a few seconds, once per model, camera and view range).
+Expected<void> enable_search(pipeline::SingleObjectTracker& tracker, const TrackOptions& opt,
+                             const model::Model& model, const geometry::PinholeCamera& cam) {
+  detection::CacheReport rep;
+  auto ts = detection::load_or_build(model, cam, opt.detect, opt.cache_dir, &rep);
+  if (!ts) return ts.error();
+  if (rep.built && !opt.quiet)
+    fmt::print(stderr, "v4r track: built the detector's templates ({}){}\n", rep.reason,
+               rep.written ? ", cached in " + rep.path : ", not cached: " + rep.write_error);
+  tracker.enable_search(*ts, opt.search, opt.detect);
+  return {};
+}
+
 }  // namespace
 
 Expected<TrackSummary> run_track(const TrackOptions& opt) {
@@ -109,16 +124,18 @@ Expected<TrackSummary> run_track(const TrackOptions& opt) {
     if (!p) return p.error();
     numbers = *p;
     pose_source = opt.init_pose_file;
-  } else {
-    return make_error("an initial pose is needed: --init-pose-file FILE or --init-pose \"tx ty tz rx ry rz\"");
+  } else if (!opt.search.enabled) {
+    return make_error("an initial pose is needed (search.enabled is false): --init-pose-file FILE or --init-pose \"tx ty tz rx ry rz\"");
   }
+  const bool have_pose = !pose_source.empty();  // else the object is searched for from frame 0
   const geometry::SE3 init = io::pose_from_numbers(numbers);
-  if (init.translation().z() <= 0.0)
+  if (have_pose && init.translation().z() <= 0.0)
     return make_error("the initial pose puts the object behind the camera (tz <= 0)");
   std::vector<std::string> warnings;
   if (opt.warnings) {
     for (auto& w : check_model_size(**model, opt.model_path)) warnings.push_back(std::move(w));
-    for (auto& w : check_pose(numbers, pose_source)) warnings.push_back(std::move(w));
+    if (have_pose)
+      for (auto& w : check_pose(numbers, pose_source)) warnings.push_back(std::move(w));
   }
   auto source = io::FrameSource::open(opt.input);
   if (!source) return source.error();
@@ -150,6 +167,7 @@ Expected<TrackSummary> run_track(const TrackOptions& opt) {
   ProgressLine bar(progress && !opt.quiet, (*source)->size_hint());
   cv::Mat frame, grey;
   double first_file_time = -1.0;
+  bool search_on = false;  // with an initial pose, the search is set up when the object is first lost
   for (int i = 0;; ++i) {
     auto more = (*source)->next(frame);
     if (!more) return more.error();
@@ -163,12 +181,18 @@ Expected<TrackSummary> run_track(const TrackOptions& opt) {
                         fmt::format("image is {}x{} but the camera calibration {} is {}x{}", frame.cols, frame.rows,
                                     opt.camera_path, cam->width, cam->height));
     if (i == 0) {
-      if (opt.warnings)
+      if (opt.warnings && have_pose)
         for (auto& w : check_projection(**model, *cam, init)) warnings.push_back(std::move(w));
       for (const std::string& w : warnings) fmt::print(stderr, "v4r track: warning: {}\n", w);
       s.warnings = warnings.size();
       tracker.emplace(*model, *cam, opt.params);
-      tracker->set_pose(init);
+      if (have_pose) {
+        tracker->set_pose(init);
+      } else {
+        if (auto e = enable_search(*tracker, opt, **model, *cam); !e) return e.error();
+        tracker->start_search();
+        search_on = true;
+      }
     }
     if (frame.channels() == 3) {
       cv::cvtColor(frame, grey, cv::COLOR_BGR2GRAY);
@@ -189,6 +213,13 @@ Expected<TrackSummary> run_track(const TrackOptions& opt) {
       stamp = t - first_file_time;
     }
     const pipeline::FrameResult r = tracker->track(io::as_view(grey), io::as_colour_view(frame), stamp);
+    if (!search_on && opt.search.enabled && r.report.status == scene::TrackStatus::kLost) {
+      if (auto e = enable_search(*tracker, opt, **model, *cam); !e) return e.error();
+      search_on = true;
+    }
+    if (r.search.searched) s.search_ms.push_back(r.search.search_ms);
+    if (r.report.status == scene::TrackStatus::kSearching) ++s.searching;
+    if (r.report.status == scene::TrackStatus::kTracking && s.first_tracking < 0) s.first_tracking = i;
     s.poses.push_back(r.T_cam_obj);
     s.cycle_ms.push_back(r.cycle_ms);
     s.visibility_ms.push_back(r.visibility_ms);
@@ -242,7 +273,12 @@ Expected<TrackSummary> run_track(const TrackOptions& opt) {
 }
 
 void print_report(const TrackSummary& s, const std::vector<geometry::SE3>* truth) {
-  fmt::print("frames {}  lost {}  degraded {}\n", s.frames, s.lost, s.degraded);
+  fmt::print("frames {}  lost {}  degraded {}  searching {}\n", s.frames, s.lost, s.degraded, s.searching);
+  if (!s.search_ms.empty()) {
+    const auto sp = pipeline::percentiles(s.search_ms);
+    fmt::print("search: {} frames, median {:.1f} ms, p99 {:.1f} ms; first tracking frame {}\n", s.search_ms.size(),
+               sp.median, sp.p99, s.first_tracking);
+  }
   if (truth) {
     const pipeline::AccuracyStats a = pipeline::evaluate(s.poses, *truth);
     fmt::print("accuracy vs ground truth ({} frames):\n", a.frames);
@@ -283,6 +319,11 @@ int cmd_track(const TrackOptions& opt) {
     if (s->dropped > 0) fmt::print("live input: {} frames dropped (the tracker took the newest)\n", s->dropped);
     if (!opt.output_csv.empty()) fmt::print("wrote {} ({} rows)\n", opt.output_csv, s->frames);
     if (!opt.overlay.empty()) fmt::print("wrote {} (overlay)\n", opt.overlay);
+  }
+  if (s->searching + s->lost == s->frames && s->searching > 0) {
+    fmt::print(stderr, "v4r track: error: the object was not found on any frame ({} frames searched){}\n",
+               s->searching, "; check the model's units, the camera and the view range (detect.views.*)");
+    return 3;
   }
   if (s->lost == s->frames) {
     fmt::print(stderr, "v4r track: error: the object was lost on every frame ({} of {}){}\n", s->lost, s->frames,

@@ -15,7 +15,7 @@ BudgetPlan BudgetPlanner::plan(scene::Scene& scene, const CycleParams& cycle) {
   auto predicted_us = [&](int rows, int circle_samples) {
     long samples = 0;
     for (const scene::Object& o : scene.objects()) {
-      if (o.status == scene::TrackStatus::kUninitialised) continue;
+      if (!scene::is_tracked(o.status)) continue;
       for (const scene::View& v : o.views) {
         for (const scene::LineFeature& f : v.lines)
           if (f.visible && !f.ambiguous && !f.dropped) samples += rows;
@@ -36,7 +36,7 @@ BudgetPlan BudgetPlanner::plan(scene::Scene& scene, const CycleParams& cycle) {
   plan.degrade_level = 2;
   scores_.clear();
   for (const scene::Object& o : scene.objects()) {
-    if (o.status == scene::TrackStatus::kUninitialised) continue;
+    if (!scene::is_tracked(o.status)) continue;
     for (const scene::View& v : o.views) {
       for (const scene::LineFeature& f : v.lines)
         if (f.visible && !f.ambiguous) scores_.push_back(static_cast<float>((f.predicted.b - f.predicted.a).norm()));

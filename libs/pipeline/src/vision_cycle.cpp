@@ -88,7 +88,7 @@ void VisionCycle::predict_object(scene::Object& obj, ObjectReport& rep, double s
 void VisionCycle::predict_views(scene::Scene& scene, std::span<const CameraImage> images) {
   auto objects = scene.objects();
   const auto tracked = [&](std::size_t oi) {
-    return objects[oi].status != scene::TrackStatus::kUninitialised && !report_.objects[oi].failed;
+    return scene::is_tracked(objects[oi].status) && !report_.objects[oi].failed;
   };
   for (std::size_t c = 0; c < scene.cameras().size(); ++c) {
     if (c >= images.size() || images[c].grey.empty()) continue;
@@ -292,6 +292,11 @@ const CycleReport& VisionCycle::process(scene::Scene& scene, std::span<const Cam
     ObjectReport& rep = report_.objects[oi];
     rep = ObjectReport{};
     if (obj.status == scene::TrackStatus::kUninitialised) continue;
+    // An object being searched for is left to pipeline::ObjectSearch (issue 10).
+    if (obj.status == scene::TrackStatus::kSearching) {
+      rep.status = obj.status;
+      continue;
+    }
     // One object's fault (a bug, bad_alloc, an OpenCV exception) must not end the others' cycle.
     try {
       predict_object(obj, rep, stamp_s);
@@ -316,7 +321,7 @@ const CycleReport& VisionCycle::process(scene::Scene& scene, std::span<const Cam
   for (std::size_t oi = 0; oi < objects.size(); ++oi) {
     scene::Object& obj = objects[oi];
     ObjectReport& rep = report_.objects[oi];
-    if (obj.status == scene::TrackStatus::kUninitialised || rep.failed) continue;
+    if (!scene::is_tracked(obj.status) || rep.failed) continue;
     try {
       if (object_hook_) object_hook_(obj);
       measure_object(scene, obj, images, rep, stamp_s);

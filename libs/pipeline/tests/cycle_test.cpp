@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 
+#include "v4r/detection/template_set.hpp"
 #include "v4r/geometry/look_at.hpp"
 #include "v4r/model/cao_reader.hpp"
 #include "v4r/pipeline/tracker.hpp"
@@ -219,4 +220,66 @@ TEST(VisionCycle, LongMissedFeaturesAreSearchedOnlyEveryFewFrames) {
   EXPECT_GE(always.windows - backoff.windows, 12);
   EXPECT_LT(backoff.max_error_m, 1e-3);
   EXPECT_LT(always.max_error_m, 1e-3);
+}
+
+TEST(ObjectSearch, FindsTheObjectWithoutAPoseAndAllocatesNothingPerFrame) {
+  // Issue 10: no start pose. The object is `searching` (the cycle leaves it alone) until the
+  // search found it and confirmed it on a second frame; after the first (warm-up) frame neither
+  // the search nor the tracking touch the heap.
+  const Sequence s = make(&synth::box_cao, 0.55, 10);
+  detection::DetectorParams dp;
+  auto ts = detection::build_templates(*s.model, synth::default_camera(), dp);
+  ASSERT_TRUE(ts) << ts.error().to_string();
+  pipeline::SingleObjectTracker tracker(s.model, synth::default_camera());
+  tracker.enable_search(std::make_shared<const detection::TemplateSet>(std::move(*ts)), pipeline::ObjectSearchParams{},
+                        dp);
+  tracker.start_search();
+  g_allocations = 0;
+  g_counting = true;
+  pipeline::FrameResult r = tracker.track(view(s.grey[0]), cview(s.bgr[0]));
+  g_counting = false;
+  EXPECT_EQ(r.report.status, scene::TrackStatus::kSearching);
+  EXPECT_TRUE(r.search.searched);
+  EXPECT_EQ(r.report.features_visible, 0) << "a searched object is not tracked by the cycle";
+  long allocations = 0;
+  int first_tracking = -1;
+  for (std::size_t i = 1; i < s.grey.size(); ++i) {
+    g_allocations = 0;
+    g_counting = true;
+    r = tracker.track(view(s.grey[i]), cview(s.bgr[i]));
+    g_counting = false;
+    // Counted: every search frame, and the tracking frames after the cycle's first one on the
+    // object (which sizes the trackers' buffers, the warm-up of the test above).
+    if (first_tracking < 0 || static_cast<int>(i) > first_tracking + 1) allocations += g_allocations;
+    if (r.report.status == scene::TrackStatus::kTracking && first_tracking < 0) {
+      first_tracking = static_cast<int>(i);
+      EXPECT_TRUE(r.search.locked);
+    }
+    if (first_tracking >= 0) {
+      EXPECT_EQ(r.report.status, scene::TrackStatus::kTracking) << i;
+      EXPECT_LT((r.T_cam_obj.translation() - s.truth[i].translation()).norm(), 0.01) << i;  // (the box: symmetric, translation only)
+    }
+  }
+  EXPECT_EQ(first_tracking, 1) << "found on frame 0, confirmed on frame 1";
+  EXPECT_EQ(allocations, 0);
+}
+
+TEST(ObjectSearch, ALostObjectTurnsToSearchingAfterLostFrames) {
+  const Sequence s = make(&synth::box_cao, 0.55, 3);
+  detection::DetectorParams dp;
+  auto ts = detection::build_templates(*s.model, synth::default_camera(), dp);
+  ASSERT_TRUE(ts);
+  pipeline::ObjectSearchParams sp;
+  sp.lost_frames = 3;
+  pipeline::SingleObjectTracker tracker(s.model, synth::default_camera());
+  tracker.enable_search(std::make_shared<const detection::TemplateSet>(std::move(*ts)), sp, dp);
+  tracker.set_pose(s.truth[0]);
+  EXPECT_EQ(tracker.track(view(s.grey[0])).report.status, scene::TrackStatus::kTracking);
+  const cv::Mat empty(s.grey[0].rows, s.grey[0].cols, CV_8UC1, cv::Scalar(70));
+  std::vector<scene::TrackStatus> st;
+  for (int i = 0; i < 6; ++i) st.push_back(tracker.track(view(empty)).report.status);
+  EXPECT_EQ(st[0], scene::TrackStatus::kLost);
+  EXPECT_EQ(st[1], scene::TrackStatus::kLost);
+  EXPECT_EQ(st[2], scene::TrackStatus::kSearching) << "the third lost frame in a row";
+  for (int i = 3; i < 6; ++i) EXPECT_EQ(st[static_cast<std::size_t>(i)], scene::TrackStatus::kSearching) << i;
 }

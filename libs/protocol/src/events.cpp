@@ -44,16 +44,19 @@ std::optional<ParseError> lex_server(std::string_view line, std::vector<Token>& 
 std::variant<ObjectPoseEvent, ParseError> object_pose_from(const std::vector<Token>& tokens) {
   Args a("ObjectPose", std::vector<Token>(tokens.begin() + 1, tokens.end()));
   a.check_keys({"object", "frame", "stamp", "t", "q", "cov", "quality", "status"}, 0, true);
-  a.require({"object", "frame", "stamp", "t", "q", "cov", "quality", "status"});
+  a.require({"object", "frame", "stamp", "quality", "status"});
   ObjectPoseEvent e;
   e.object = a.name("object");
   e.frame = a.whole("frame");
   e.stamp = a.number("stamp");
-  e.t = a.vector<3>("t", "tx,ty,tz");
-  e.q = a.vector<4>("q", "qw,qx,qy,qz");
-  e.cov = a.vector<36>("cov", "(6x6 row-major)");
   e.quality = a.number("quality");
-  e.status = static_cast<TrackStatus>(a.word("status", {"tracking", "degraded", "lost", "failed"}));
+  e.status = static_cast<TrackStatus>(a.word("status", {"tracking", "degraded", "lost", "failed", "searching"}));
+  if (e.status != TrackStatus::kSearching) {  // a searched object has no pose
+    a.require({"t", "q", "cov"});
+    e.t = a.vector<3>("t", "tx,ty,tz");
+    e.q = a.vector<4>("q", "qw,qx,qy,qz");
+    e.cov = a.vector<36>("cov", "(6x6 row-major)");
+  }
   if (!a.ok()) return a.error();
   return e;
 }
@@ -133,10 +136,12 @@ const std::string* Reply::find(std::string_view key) const {
 }
 
 std::string format(const ObjectPoseEvent& e) {
-  std::string s = "ObjectPose object=" + format_value(e.object) + " frame=" + std::to_string(e.frame) +
-                  " stamp=" + format_number(e.stamp) + " t=" + join(e.t) + " q=" + join(e.q) + " cov=" + join(e.cov) +
-                  " quality=" + format_number(e.quality) + " status=" + std::string(to_string(e.status));
-  return s;
+  const std::string pose = e.status == TrackStatus::kSearching
+                               ? std::string()
+                               : " t=" + join(e.t) + " q=" + join(e.q) + " cov=" + join(e.cov);
+  return "ObjectPose object=" + format_value(e.object) + " frame=" + std::to_string(e.frame) +
+         " stamp=" + format_number(e.stamp) + pose + " quality=" + format_number(e.quality) +
+         " status=" + std::string(to_string(e.status));
 }
 
 std::string format(const SystemStatusEvent& e) {

@@ -32,6 +32,7 @@ std::string_view to_string(TrackStatus s) {
     case TrackStatus::kDegraded: return "degraded";
     case TrackStatus::kLost: return "lost";
     case TrackStatus::kFailed: return "failed";
+    case TrackStatus::kSearching: return "searching";
   }
   return "?";
 }

@@ -232,3 +232,20 @@ TEST(ProtocolReplies, EveryParseErrorBecomesAValidErrLine) {
     EXPECT_EQ(reply.command, e.command);
   }
 }
+
+TEST(ProtocolEvents, SearchingObjectPoseHasNoPose) {
+  vp::ObjectPoseEvent e;
+  e.object = "box";
+  e.frame = 7;
+  e.stamp = 0.25;
+  e.quality = 0.0;
+  e.status = vp::TrackStatus::kSearching;
+  const std::string line = vp::format(e);
+  EXPECT_EQ(line, "ObjectPose object=box frame=7 stamp=0.25 quality=0 status=searching");
+  const auto back = vp::parse_object_pose(line);
+  ASSERT_TRUE(std::holds_alternative<vp::ObjectPoseEvent>(back));
+  EXPECT_EQ(std::get<vp::ObjectPoseEvent>(back), e);
+  // Any other status still needs its pose.
+  const auto bad = vp::parse_object_pose("ObjectPose object=box frame=7 stamp=0.25 quality=0 status=lost");
+  EXPECT_TRUE(std::holds_alternative<vp::ParseError>(bad));
+}

@@ -11,6 +11,7 @@ const char* to_string(TrackStatus s) {
     case TrackStatus::kTracking: return "tracking";
     case TrackStatus::kDegraded: return "degraded";
     case TrackStatus::kLost: return "lost";
+    case TrackStatus::kSearching: return "searching";
   }
   return "unknown";
 }
@@ -90,6 +91,16 @@ bool Scene::remove_object(std::size_t object) {
   if (object >= objects_.size()) return false;
   objects_.erase(objects_.begin() + static_cast<std::ptrdiff_t>(object));
   return true;
+}
+
+void Scene::start_search(std::size_t object) {
+  Object& o = objects_.at(object);
+  o.status = TrackStatus::kSearching;
+  o.measured = TrackStatus::kLost;
+  o.quality = 0.0;
+  o.evidence = 0.0;
+  o.confirmed = false;
+  o.velocity.setZero();
 }
 
 long Scene::find_object(const std::string& name) const {

@@ -320,6 +320,9 @@ Expected<std::unique_ptr<Server>> Server::create(ServerOptions opt) {
   so.fps = opt.fps;
   so.paused = opt.paused;
   so.params = opt.params;
+  so.search = opt.search;
+  so.detect = opt.detect;
+  so.cache_dir = opt.cache_dir;
   so.default_log_file = opt.log_file;
   so.log_dirs = std::move(logs);
   so.object_hook = opt.object_hook;

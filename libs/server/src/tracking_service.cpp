@@ -41,6 +41,7 @@ protocol::TrackStatus to_protocol(scene::TrackStatus s) {
   switch (s) {
     case scene::TrackStatus::kTracking: return protocol::TrackStatus::kTracking;
     case scene::TrackStatus::kDegraded: return protocol::TrackStatus::kDegraded;
+    case scene::TrackStatus::kSearching: return protocol::TrackStatus::kSearching;
     default: return protocol::TrackStatus::kLost;
   }
 }
@@ -63,6 +64,8 @@ TrackingService::TrackingService(ServiceOptions opt, std::unique_ptr<io::FrameSo
       cycle_(params_) {
   scene_.add_camera(scene::Camera{"camera", opt_.camera, geometry::SE3()});
   paused_ = opt_.paused;
+  if (opt_.search.enabled)
+    search_ = std::make_unique<ServiceSearch>(params_, opt_.search, opt_.detect, opt_.camera, opt_.cache_dir);
   if (opt_.object_hook) cycle_.set_object_hook([hook = opt_.object_hook](const scene::Object& o) { hook(o.name); });
 }
 
@@ -290,7 +293,11 @@ std::string TrackingService::set_model(ObjectEntry& e, std::shared_ptr<const mod
   } else {
     auto added = scene_.add_object(e.name, m);
     if (!added) return format_err(cmd, code::kInternal, added.error().to_string());
-    if (e.has_pose) scene_.set_pose(*added, e.pose);
+    if (e.has_pose) {
+      scene_.set_pose(*added, e.pose);
+    } else if (search_) {
+      scene_.start_search(*added);  // issue 10: found by the search (ServiceSearch)
+    }
   }
   e.model = m;
   e.failed = false;  // a new model is a fresh start
@@ -539,6 +546,7 @@ void TrackingService::process_frame(Clock::time_point released) {
   if (const double own = source_->stamp_s(); own >= 0.0) stamp = own;  // e.g. a ROS image's header
   const pipeline::CameraImage img{io::as_view(grey_), io::as_colour_view(frame_)};
   const pipeline::CycleReport& rep = cycle_.process(scene_, std::span<const pipeline::CameraImage>(&img, 1), stamp);
+  if (search_) search_->update(scene_, std::span<const pipeline::CameraImage>(&img, 1), rep.stamp_s);
 
   auto ev = std::make_shared<FrameEvents>();
   ev->frame = index;

@@ -17,7 +17,9 @@
 namespace v4r::protocol {
 
 /// \brief `ObjectPose object=ID frame=N stamp=S t=tx,ty,tz q=qw,qx,qy,qz cov=<36> quality=Q
-/// status=tracking|degraded|lost|failed`: the pose of one object after one frame.
+/// status=tracking|degraded|lost|failed`: the pose of one object after one frame; or
+/// `ObjectPose object=ID frame=N stamp=S quality=Q status=searching` (no pose: not found yet, or
+/// lost and searched again; t, q and cov are then left at their defaults).
 struct ObjectPoseEvent {
   std::string object;
   std::uint64_t frame = 0;  ///< input frame index, counted from 0

@@ -63,7 +63,8 @@ enum class ModelFormat { kCao, kObj, kPly, kStl };
 /// \brief Event streams a client can subscribe to.
 enum class Topic { kObjectPose, kSystemStatus };
 /// \brief Tracking state of one object in an ObjectPose event.
-enum class TrackStatus { kTracking, kDegraded, kLost, kFailed };
+/// kSearching: the object has no pose yet (or lost and searched again); its ObjectPose has no t, q, cov.
+enum class TrackStatus { kTracking, kDegraded, kLost, kFailed, kSearching };
 
 std::string_view to_string(ModelFormat f);  ///< "cao", "obj", "ply", "stl"
 std::string_view to_string(Topic t);        ///< "ObjectPose", "SystemStatus"

@@ -89,9 +89,13 @@ struct View {
   int evidence_samples = 0, evidence_matched = 0;
 };
 
-/// Tracking state of an object.
-enum class TrackStatus : std::uint8_t { kUninitialised, kTracking, kDegraded, kLost };
+/// Tracking state of an object. kSearching: not found yet, or lost for long and searched again
+/// over the image (pipeline::ObjectSearch); the cycle does not track it and it has no pose.
+enum class TrackStatus : std::uint8_t { kUninitialised, kTracking, kDegraded, kLost, kSearching };
 const char* to_string(TrackStatus s);
+/// The vision cycle measures the object: its pose was set or found (not uninitialised, not
+/// being searched for).
+inline bool is_tracked(TrackStatus s) { return s != TrackStatus::kUninitialised && s != TrackStatus::kSearching; }
 
 /// \brief A tracked object (paper 2.1): a model, one view per camera, and its pose in the
 /// reference frame.
@@ -137,6 +141,9 @@ class Scene {
   bool remove_object(std::size_t object);
   /// Sets the pose of an object in the reference frame and (re)starts its tracking.
   void set_pose(std::size_t object, const geometry::SE3& T_ref_obj);
+  /// Marks an object as searched for (kSearching): it keeps no pose and the vision cycle leaves
+  /// it to the search until a pose is set (set_pose).
+  void start_search(std::size_t object);
 
   /// The cameras, in the order added (View::camera indexes them).
   [[nodiscard]] std::span<const Camera> cameras() const { return cameras_; }

@@ -12,6 +12,7 @@
 #include "v4r/core/clock.hpp"
 #include "v4r/core/expected.hpp"
 #include "v4r/geometry/camera.hpp"
+#include "v4r/pipeline/object_search.hpp"
 #include "v4r/pipeline/vision_cycle.hpp"
 
 namespace v4r::server {
@@ -35,6 +36,9 @@ struct ServerOptions {
   std::chrono::milliseconds auth_timeout{10000};         ///< time to authenticate when a token is set
   std::chrono::milliseconds close_grace{2000};           ///< time a final ERR gets to reach a client before close
   pipeline::CycleParams params;    ///< initial tracker parameters
+  pipeline::ObjectSearchParams search;  ///< search.*: objects without SetPose, and lost ones, are searched
+  detection::DetectorParams detect;     ///< detect.*: the search's detector
+  std::string cache_dir;                ///< the detector's template cache (empty: the default)
   std::string log_file = "v4r_cycles.csv";  ///< `Log on` without file= (the operator's choice: not bounded by log_dir)
   std::vector<std::string> data_dirs;  ///< folders `AddModel path=` may read (relative: inside the first); empty: the working folder
   std::string log_dir;                 ///< folder `Log on file=` may write; empty: `file=` is refused

@@ -29,6 +29,7 @@
 #include "v4r/server/feature_model.hpp"
 #include "v4r/server/outbox.hpp"
 #include "v4r/server/path_policy.hpp"
+#include "v4r/server/service_search.hpp"
 
 namespace v4r::server {
 
@@ -38,6 +39,9 @@ struct ServiceOptions {
   double fps = 30.0;               ///< frames per second the input is played at; <= 0: as fast as processed
   bool paused = false;             ///< hold at frame 0 until Start
   pipeline::CycleParams params;    ///< initial tracker parameters
+  pipeline::ObjectSearchParams search;  ///< search.*: objects without a pose, and lost ones, are searched (issue 10)
+  detection::DetectorParams detect;     ///< detect.*: the search's detector
+  std::string cache_dir;                ///< the detector's template cache (empty: the default)
   std::string default_log_file = "v4r_cycles.csv";  ///< `Log on` without file= (the operator's file)
   PathPolicy log_dirs;             ///< where `Log on file=` may write (empty: refused)
   std::size_t max_objects = 64;    ///< AddObject beyond this: ERR code=busy
@@ -208,6 +212,7 @@ class TrackingService {
   std::atomic<int> tracked_{0}, failed_{0};
   std::atomic<std::uint64_t> faults_{0};
   std::atomic<bool> healthy_{true};
+  std::unique_ptr<ServiceSearch> search_;  // null: search.enabled is false
   std::jthread thread_;
 };
 

@@ -1,0 +1,117 @@
+// v4r - robust model-based object tracking. MIT licence.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include "v4r/core/params.hpp"
+#include "v4r/detection/detector.hpp"
+#include "v4r/pipeline/vision_cycle.hpp"
+#include "v4r/scene/scene.hpp"
+
+namespace v4r::pipeline {
+
+/// \brief When and how an object without a pose is searched for (issue 10: automatic start and
+/// recovery after loss). Registered as `search.*` (add_search_params).
+struct ObjectSearchParams {
+  bool enabled = true;           ///< objects lost for lost_frames are searched again
+  int lost_frames = 3;           ///< frames reported `lost` in a row after which an object is searched
+  int local_frames = 10;         ///< search frames on which perturbed restarts around the last pose are tried
+  int restarts = 4;              ///< perturbed restarts per search frame (around the last pose)
+  double restart_shift = 0.5;    ///< restart offsets across the view: this times the model's bounding radius
+  int hypotheses = 10;           ///< best detector hypotheses refined by the tracker per search frame
+  int refine_cycles = 3;         ///< vision cycles run on a hypothesis (first wide windows, then normal)
+  /// A refined hypothesis is accepted when the cycle reports `tracking` on it and this share of
+  /// the projected model's edge samples is confirmed by the image (features::EdgeEvidence).
+  double accept_evidence = 0.7;
+  /// A found pose must lie in the detector's view range (detect.views.*: elevation, in-plane
+  /// turn, distance) widened by this many degrees (distance: by the ratio 1 + margin / 45),
+  /// modulo the model's symmetries: an edge image can fit a turned and farther box as well as
+  /// the true one (a Necker-like ambiguity), and the range says which views can occur.
+  double view_margin_deg = 15.0;
+  /// An accepted pose becomes `tracking` when the next frame, tracked from it, accepts it again
+  /// within these limits (consistency over 2 frames).
+  double confirm_translation_m = 0.03;
+  double confirm_rotation_deg = 10.0;
+};
+
+/// Registers every ObjectSearchParams field under `search.*` (units and ranges); `p` must
+/// outlive the registry.
+void add_search_params(ParamRegistry& r, ObjectSearchParams& p);
+
+/// \brief What the search did for one object on one frame.
+struct SearchReport {
+  bool searched = false;     ///< the object was searched on this frame
+  bool found = false;        ///< a hypothesis was accepted (a candidate, not yet confirmed)
+  bool locked = false;       ///< a candidate was confirmed: the object is `tracking` from this frame
+  bool started = false;      ///< the object turned to `searching` on this frame (lost for lost_frames)
+  int tried = 0;             ///< hypotheses refined by the tracker
+  double best_evidence = 0;  ///< edge evidence of the best refined hypothesis
+  double search_ms = 0.0;    ///< time of this object's search
+  double detect_ms = 0.0;    ///< of which the detector's whole-image search
+};
+
+/// \brief Finds objects that have no pose (kSearching) and hands them back to the vision cycle.
+///
+/// Per frame, after VisionCycle::process: an object reported `lost` for lost_frames frames in a
+/// row turns to `searching`. A searching object is looked for on camera 0: (1) the candidate of
+/// the last frame, if any, tracked on this frame; (2) on the first local_frames search frames,
+/// perturbed restarts around the last pose; (3) the detector's best hypotheses over the whole
+/// image (detection::Detector). Every hypothesis is refined by the tracker itself (a private
+/// VisionCycle run refine_cycles times on it: features not found yet are searched in the wide
+/// window, then tracked in the normal one) and accepted by the cycle's own status test: the
+/// share of the whole projected model's edge samples that the image confirms
+/// (features::EdgeEvidence; the detector's own verification score is not used). An accepted
+/// pose confirmed on the next frame (consistency over 2 frames) is set on the scene object,
+/// which is `tracking` from then on. Set-up allocates; update() allocates nothing and throws
+/// nothing. Not thread-safe.
+class ObjectSearch {
+ public:
+  ObjectSearch(const CycleParams& cycle, const ObjectSearchParams& p, const detection::DetectorParams& dp);
+
+  /// Makes scene object `object` searchable with the templates of its model for camera 0 of the
+  /// scene (built by detection::load_or_build for that camera and `dp`). Allocates.
+  void add_object(const scene::Scene& scene, std::size_t object,
+                  std::shared_ptr<const detection::TemplateSet> templates);
+
+  /// Runs the search for this frame (see the class comment); `images` as given to the cycle.
+  /// Returns one report per scene object (objects without templates are never searched).
+  std::span<const SearchReport> update(scene::Scene& scene, std::span<const CameraImage> images, double stamp_s);
+
+  [[nodiscard]] const ObjectSearchParams& params() const { return p_; }
+
+ private:
+  struct Slot {
+    bool active = false;
+    std::unique_ptr<detection::Detector> detector;
+    int lost_streak = 0;
+    int search_frames = 0;
+    bool have_last = false;      // a last pose to restart from (camera frame)
+    geometry::SE3 T_last;
+    bool have_candidate = false; // accepted on the previous frame, to be confirmed
+    geometry::SE3 T_candidate;
+    double radius = 0.0;         // model bounding radius, m
+    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+    detection::ViewRange range;  // resolved for the model and camera
+    std::vector<geometry::SE3> symmetries;
+  };
+  /// T_cam_obj (or one of its symmetric equivalents) within the slot's view range and margin.
+  [[nodiscard]] bool in_view_range(const Slot& s, const geometry::SE3& T) const;
+  /// Refines T (camera frame) with the private cycle; returns its rank (edge samples the image
+  /// confirms) if accepted, else -1; its edge evidence (share) in last_evidence_.
+  double refine(std::size_t object, const CameraImage& img, double stamp_s, geometry::SE3& T);
+  void search(scene::Scene& scene, std::size_t object, const CameraImage& img, double stamp_s, SearchReport& rep);
+
+  ObjectSearchParams p_;
+  detection::DetectorParams dp_;
+  VisionCycle probe_;             // the tracker run on hypotheses
+  scene::Scene probe_scene_;      // camera 0 at the reference, one object per scene object
+  std::vector<Slot> slots_;
+  std::vector<SearchReport> reports_;
+  std::vector<detection::Hypothesis> hyp_;
+  double last_evidence_ = 0.0;
+};
+
+}  // namespace v4r::pipeline

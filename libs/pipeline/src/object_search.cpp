@@ -1,0 +1,228 @@
+// v4r - robust model-based object tracking. MIT licence.
+#include "v4r/pipeline/object_search.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "v4r/detection/symmetry.hpp"
+
+namespace v4r::pipeline {
+
+namespace {
+
+constexpr double kDeg = 3.14159265358979323846 / 180.0;
+
+/// The cycle that refines hypotheses: no filter (each frame's pose is its measurement), no budget.
+CycleParams probe_params(const CycleParams& c) {
+  CycleParams p = c;
+  p.use_filter = false;
+  p.smooth_output = false;
+  p.budget.cycle_ms = 0.0;
+  return p;
+}
+
+}  // namespace
+
+void add_search_params(ParamRegistry& r, ObjectSearchParams& p) {
+  r.add("search.enabled", &p.enabled, "search objects without a pose (start, and after lost_frames lost frames)");
+  r.add("search.lost_frames", &p.lost_frames, 1, 100000, "frames", "frames reported lost in a row before the object is searched again");
+  r.add("search.local_frames", &p.local_frames, 0, 100000, "frames",
+        "search frames on which perturbed restarts around the last pose are tried");
+  r.add("search.restarts", &p.restarts, 0, 64, "", "perturbed restarts around the last pose per search frame");
+  r.add("search.restart_shift", &p.restart_shift, 0.0, 10.0, "radius",
+        "restart offsets across the view, in model bounding radii");
+  r.add("search.hypotheses", &p.hypotheses, 1, 64, "", "best detector hypotheses refined by the tracker per search frame");
+  r.add("search.refine_cycles", &p.refine_cycles, 1, 20, "", "vision cycles run on a hypothesis (wide windows, then normal)");
+  r.add("search.accept_evidence", &p.accept_evidence, 0.0, 1.0, "",
+        "share of the projected model's edge samples the image must confirm for a found pose");
+  r.add("search.view_margin", &p.view_margin_deg, 0.0, 180.0, "deg",
+        "a found pose must lie in the detector's view range (detect.views.*) widened by this");
+  r.add("search.confirm_translation", &p.confirm_translation_m, 0.0, 10.0, "m",
+        "a found pose is confirmed when the next frame finds it again this close");
+  r.add("search.confirm_rotation", &p.confirm_rotation_deg, 0.0, 180.0, "deg", "... and within this angle");
+}
+
+ObjectSearch::ObjectSearch(const CycleParams& cycle, const ObjectSearchParams& p, const detection::DetectorParams& dp)
+    : p_(p), dp_(dp), probe_(probe_params(cycle)) {
+  hyp_.resize(static_cast<std::size_t>(std::clamp(p_.hypotheses, 1, 64)));
+}
+
+void ObjectSearch::add_object(const scene::Scene& scene, std::size_t object,
+                              std::shared_ptr<const detection::TemplateSet> templates) {
+  if (object >= scene.objects().size() || scene.cameras().empty() || !templates) return;
+  if (probe_scene_.cameras().empty()) {
+    scene::Camera c = scene.cameras()[0];
+    c.T_ref_cam = geometry::SE3();
+    probe_scene_.add_camera(c);
+  }
+  // One probe object per scene object (same index), added up to `object`.
+  const auto& objs = scene.objects();
+  while (probe_scene_.objects().size() <= object) {
+    const std::size_t k = probe_scene_.objects().size();
+    (void)probe_scene_.add_object(objs[k].name, objs[k].model);
+  }
+  if (slots_.size() < objs.size()) slots_.resize(objs.size());
+  if (reports_.size() < objs.size()) reports_.resize(objs.size());
+  Slot& s = slots_[object];
+  s.detector = std::make_unique<detection::Detector>(objs[object].model, std::move(templates),
+                                                     scene.cameras()[0].intrinsics, dp_);
+  const detection::ModelExtent ext = detection::model_extent(*objs[object].model);
+  s.radius = ext.radius;
+  s.centre = ext.centre;
+  s.range = detection::resolve_view_range(dp_.views, ext.radius, scene.cameras()[0].intrinsics.focal());
+  s.symmetries = detection::model_symmetries(*objs[object].model);
+  if (s.symmetries.empty()) s.symmetries.emplace_back();
+  s.active = true;
+  // Allocate the probe cycle's buffers now (a cycle on an empty image set allocates them).
+  probe_.process(probe_scene_, {}, 0.0);
+}
+
+bool ObjectSearch::in_view_range(const Slot& s, const geometry::SE3& T) const {
+  const double m = p_.view_margin_deg;
+  const detection::ViewRange& v = s.range;
+  const double dist_ratio = 1.0 + m / 45.0;
+  for (const geometry::SE3& S : s.symmetries) {
+    const geometry::SE3 TS = T * S;
+    const Eigen::Vector3d eye = TS.inverse().translation() - s.centre;
+    const double d = eye.norm();
+    if (d < v.distance_min_m / dist_ratio || d > v.distance_max_m * dist_ratio) continue;
+    const double el = std::asin(std::clamp(eye.z() / std::max(d, 1e-12), -1.0, 1.0)) / kDeg;
+    if (el < v.elevation_min_deg - m || el > v.elevation_max_deg + m) continue;
+    // In-plane turn: where the object's z axis points in the image (up at 0, see geometry::look_at).
+    const Eigen::Vector3d z = TS.rotation().col(2);
+    if (std::hypot(z.x(), z.y()) > 0.2) {  // (seen from straight above, the turn is the azimuth's)
+      const double ip = std::atan2(z.x(), -z.y()) / kDeg;
+      if (ip < v.inplane_min_deg - m || ip > v.inplane_max_deg + m) continue;
+    }
+    return true;
+  }
+  return false;
+}
+
+double ObjectSearch::refine(std::size_t object, const CameraImage& img, double stamp_s, geometry::SE3& T) {
+  if (T.translation().z() <= 1e-3) return -1.0;
+  probe_scene_.set_pose(object, T);
+  scene::Object& o = probe_scene_.objects()[object];
+  for (int c = 0; c < std::max(1, p_.refine_cycles); ++c) {
+    probe_.process(probe_scene_, std::span<const CameraImage>(&img, 1), stamp_s);
+    if (o.status == scene::TrackStatus::kUninitialised) break;  // (a fault in the probe: give up on it)
+  }
+  const bool ok = o.status == scene::TrackStatus::kTracking && o.evidence >= p_.accept_evidence &&
+                  in_view_range(slots_[object], o.T_ref_obj);
+  // Rank: edge samples confirmed, times the square of their share, weighed down by the pose
+  // solve's RMS residual as the cycle's quality is (1 / (1 + (rms / 1.5 px)^2)). An edge image
+  // can be fitted by more than one pose of a box (a Necker-like reversal: turned and farther, its
+  // projected edges on the image's edges and on texture): the false one explains as many samples
+  // or more, but leaves more of its own unconfirmed or fits them only to a pixel or so.
+  int matched = 0;
+  for (const scene::View& v : o.views) matched += v.evidence_matched;
+  const double rms = probe_.last_report().objects[object].rms_px;
+  const double rank = matched * o.evidence * o.evidence / (1.0 + (rms / 1.5) * (rms / 1.5));
+  last_evidence_ = o.evidence;
+  T = o.T_ref_obj;
+  o.status = scene::TrackStatus::kUninitialised;  // the probe object rests until the next hypothesis
+  return ok ? rank : -1.0;
+}
+
+void ObjectSearch::search(scene::Scene& scene, std::size_t object, const CameraImage& img, double stamp_s,
+                          SearchReport& rep) {
+  Slot& s = slots_[object];
+  const auto t0 = Clock::now();
+  rep.searched = true;
+  ++s.search_frames;
+  double best = -1.0, best_evidence = 0.0;
+  geometry::SE3 T_best;
+  const auto consider = [&](geometry::SE3 T) {
+    ++rep.tried;
+    const double e = refine(object, img, stamp_s, T);
+    if (e > best) {
+      best = e;
+      best_evidence = last_evidence_;
+      T_best = T;
+    }
+    return e;
+  };
+  // (1) Last frame's candidate, tracked on this frame: confirmed when it stays put.
+  if (s.have_candidate) {
+    geometry::SE3 T = s.T_candidate;
+    const double e = consider(T);
+    T = T_best;
+    const bool close = e >= 0.0 && (T.translation() - s.T_candidate.translation()).norm() <= p_.confirm_translation_m &&
+                       geometry::rotation_angle_between(T, s.T_candidate) <= p_.confirm_rotation_deg * kDeg;
+    if (close) {
+      const geometry::SE3 T_ref = scene.cameras()[0].T_ref_cam * T;
+      scene.set_pose(object, T_ref);
+      scene::Object& o = scene.objects()[object];
+      o.status = scene::TrackStatus::kTracking;
+      o.evidence = o.quality = best_evidence;
+      s.have_candidate = false;
+      s.have_last = true;
+      s.T_last = T;
+      s.search_frames = 0;
+      rep.found = rep.locked = true;
+      rep.best_evidence = best_evidence;
+      rep.search_ms = ms_between(t0, Clock::now());
+      return;
+    }
+  }
+  // (2) Perturbed restarts around the last pose (first search frames after a loss).
+  if (s.have_last && s.search_frames <= p_.local_frames) {
+    const double d = p_.restart_shift * s.radius;
+    const Eigen::Vector3d shifts[] = {{0, 0, 0}, {d, 0, 0}, {-d, 0, 0}, {0, d, 0}, {0, -d, 0}, {d, d, 0}, {-d, -d, 0},
+                                      {d, -d, 0}, {-d, d, 0}};
+    const int n = std::min<int>(p_.restarts + 1, static_cast<int>(std::size(shifts)));
+    for (int k = 0; k < n; ++k)
+      consider(geometry::SE3(Eigen::Quaterniond::Identity(), shifts[k]) * s.T_last);
+  }
+  // (3) The detector over the whole image.
+  const auto td = Clock::now();
+  const detection::DetectionResult r =
+      img.colour.empty() ? s.detector->detect(img.grey, hyp_) : s.detector->detect(img.colour, hyp_);
+  rep.detect_ms = ms_between(td, Clock::now());
+  if (r.status == detection::DetectionResult::Status::kOk) {
+    const int n = std::min<int>(r.hypotheses, std::min<int>(p_.hypotheses, static_cast<int>(hyp_.size())));
+    for (int k = 0; k < n; ++k) consider(hyp_[static_cast<std::size_t>(k)].T_cam_obj);
+  }
+  rep.best_evidence = best >= 0.0 ? best_evidence : 0.0;
+  s.have_candidate = best >= 0.0;
+  if (s.have_candidate) {
+    s.T_candidate = T_best;
+    rep.found = true;
+  }
+  rep.search_ms = ms_between(t0, Clock::now());
+}
+
+std::span<const SearchReport> ObjectSearch::update(scene::Scene& scene, std::span<const CameraImage> images,
+                                                   double stamp_s) {
+  const auto objs = scene.objects();
+  for (std::size_t i = 0; i < reports_.size(); ++i) reports_[i] = SearchReport{};
+  if (images.empty() || images[0].grey.empty()) return {reports_.data(), std::min(reports_.size(), objs.size())};
+  const CameraImage& img = images[0];
+  for (std::size_t i = 0; i < objs.size() && i < slots_.size(); ++i) {
+    Slot& s = slots_[i];
+    if (!s.active) continue;
+    scene::Object& o = objs[i];
+    SearchReport& rep = reports_[i];
+    if (o.status == scene::TrackStatus::kLost) {
+      if (++s.lost_streak >= p_.lost_frames && p_.enabled) {
+        // The last pose the image supported, or the prediction held while lost (camera frame).
+        s.T_last = scene.cameras()[0].T_ref_cam.inverse() * o.T_ref_obj;
+        s.have_last = true;
+        s.have_candidate = false;
+        s.search_frames = 0;
+        scene.start_search(i);
+        rep.started = true;
+      }
+      continue;
+    }
+    s.lost_streak = 0;
+    if (o.status != scene::TrackStatus::kSearching) {
+      s.have_candidate = false;
+      continue;
+    }
+    search(scene, i, img, stamp_s, rep);
+  }
+  return {reports_.data(), std::min(reports_.size(), objs.size())};
+}
+
+}  // namespace v4r::pipeline

@@ -1,0 +1,200 @@
+// v4r - robust model-based object tracking. MIT licence.
+// Issue 10, finding the object by itself: rendered sequences in which the object starts without
+// a pose, leaves the view for 20 frames and comes back at another pose. The tracker (with
+// pipeline::ObjectSearch) must lock by frame 10, be `tracking` again within 5 frames of the
+// return in >= 95 % of the events, and never say `tracking` on a frame without the object.
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
+
+#include "../libs/detection/tests/detection_scenes.hpp"
+#include "test_objects.hpp"
+#include "v4r/detection/symmetry.hpp"
+#include "v4r/detection/template_set.hpp"
+#include "v4r/io/frame_source.hpp"
+#include "v4r/model/cao_reader.hpp"
+#include "v4r/pipeline/tracker.hpp"
+#include "v4r/synth/conditions.hpp"
+
+using namespace v4r;
+namespace sc = v4r::detection::scenes;
+
+namespace {
+
+constexpr double kDeg = 3.14159265358979323846 / 180.0;
+
+struct Frame {
+  cv::Mat image;
+  bool has_object = false;
+  geometry::SE3 T;  // truth when has_object
+};
+
+/// `visible` frames of a slow motion from a random pose over the detector's view range.
+void append_motion(std::vector<Frame>& seq, const model::Model& m, const detection::ViewRange& views,
+                   const synth::Renderer& r, std::mt19937& rng, int visible) {
+  synth::TrajectorySpec ts;
+  ts.frames = visible;
+  // Inset by a quarter of each span and 60 px from the border: the slow motion stays in view.
+  ts.T0 = sc::random_pose(m, views, r.camera(), rng, 0.25, 60.0);
+  ts.translation_amp = 0.01;
+  ts.rotation_amp = 0.05;
+  ts.depth_amp = 0.02;
+  const auto traj = synth::make_trajectory(ts);
+  for (int k = 0; k < visible; ++k) {
+    const int index = static_cast<int>(seq.size());
+    seq.push_back({r.render(m, traj[k], index), true, traj[k]});
+  }
+}
+
+void append_empty(std::vector<Frame>& seq, const model::Model& m, const synth::Renderer& r, int n) {
+  const geometry::SE3 away(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.0, 0.0, -5.0));  // behind the camera
+  for (int k = 0; k < n; ++k) {
+    const int index = static_cast<int>(seq.size());
+    seq.push_back({r.render(m, away, index), false, away});
+  }
+}
+
+}  // namespace
+
+TEST(ObjectSearch, FindsTheObjectWithoutAPoseAndAgainAfterTwentyFramesOutOfView) {
+  const geometry::PinholeCamera cam = synth::default_camera();
+  int events = 0, recovered = 0, empty_tracking = 0, empty_frames = 0, late_start = 0;
+  std::vector<double> search_ms;
+  for (const char* name : {"box", "flange"}) {
+    const test::ObjectCase* oc = nullptr;
+    for (const auto& o : test::kObjects)
+      if (std::string(o.name) == name) oc = &o;
+    ASSERT_NE(oc, nullptr);
+    auto parsed = model::parse_cao(oc->cao(), name);
+    ASSERT_TRUE(parsed) << parsed.error().to_string();
+    auto model = std::make_shared<const model::Model>(std::move(*parsed));
+    detection::DetectorParams dp;  // default view range
+    auto ts = detection::build_templates(*model, cam, dp);
+    ASSERT_TRUE(ts) << ts.error().to_string();
+    auto templates = std::make_shared<const detection::TemplateSet>(std::move(*ts));
+    const auto sym = detection::model_symmetries(*model);
+    for (std::uint32_t seed = 1; seed <= 3; ++seed) {
+      synth::RenderOptions ro;
+      if (seed == 3) ro = synth::options_for(synth::Condition::kClutter, ro);
+      ro.seed = seed;
+      ro.cycle_frames = 2;
+      synth::Renderer r(cam, ro);
+      std::mt19937 rng(1000u * seed + static_cast<std::uint32_t>(model->lines().size()));
+      // 15 frames in view (no pose given), 20 out of view, 15 back at another pose, 20 out, 15 back.
+      std::vector<Frame> seq;
+      std::vector<int> returns;
+      append_motion(seq, *model, dp.views, r, rng, 15);
+      for (int k = 0; k < 2; ++k) {
+        append_empty(seq, *model, r, 20);
+        returns.push_back(static_cast<int>(seq.size()));
+        append_motion(seq, *model, dp.views, r, rng, 15);
+      }
+      pipeline::SingleObjectTracker tracker(model, cam);
+      tracker.enable_search(templates, pipeline::ObjectSearchParams{}, dp);
+      tracker.start_search();
+      std::vector<scene::TrackStatus> status;
+      std::vector<geometry::SE3> pose;
+      for (std::size_t i = 0; i < seq.size(); ++i) {
+        cv::Mat grey;
+        cv::cvtColor(seq[i].image, grey, cv::COLOR_BGR2GRAY);
+        const pipeline::FrameResult fr = tracker.track(io::as_view(grey), io::as_colour_view(seq[i].image));
+        status.push_back(fr.report.status);
+        pose.push_back(fr.T_cam_obj);
+        if (fr.search.searched) search_ms.push_back(fr.search.search_ms);
+        if (std::getenv("V4R_SEARCH_DEBUG") && seq[i].has_object) {
+          const auto e = detection::symmetric_pose_error(fr.T_cam_obj, seq[i].T, sym);
+          const auto elev = [&](const geometry::SE3& T) {
+            const Eigen::Vector3d eye = T.inverse().translation() - detection::model_extent(*model).centre;
+            return std::asin(eye.z() / eye.norm()) / kDeg;
+          };
+          std::printf("  %s %u frame %zu: %s tried %d best %.2f found %d locked %d ev %.2f err %.1f mm %.1f deg el %.1f truth el %.1f d %.3f truth d %.3f\n", name,
+                      seed, i, scene::to_string(fr.report.status), fr.search.tried, fr.search.best_evidence,
+                      fr.search.found, fr.search.locked, fr.report.evidence, 1e3 * e.translation, e.rotation / kDeg,
+                      elev(fr.T_cam_obj), elev(seq[i].T), fr.T_cam_obj.translation().norm(), seq[i].T.translation().norm());
+        }
+        if (!seq[i].has_object) {
+          ++empty_frames;
+          if (fr.report.status == scene::TrackStatus::kTracking) ++empty_tracking;
+        }
+      }
+      // An event: the object appears (frame 0, each return); recovered when `tracking` within
+      // 5 frames at a pose within 2 cm / 5 degrees of the truth (modulo the model's symmetries).
+      const auto first_tracking = [&](int from) {
+        for (int i = from; i < static_cast<int>(seq.size()) && seq[static_cast<std::size_t>(i)].has_object; ++i)
+          if (status[static_cast<std::size_t>(i)] == scene::TrackStatus::kTracking) return i;
+        return -1;
+      };
+      std::vector<int> starts = {0};
+      starts.insert(starts.end(), returns.begin(), returns.end());
+      for (const int s : starts) {
+        const int f = first_tracking(s);
+        bool ok = false;
+        double et = -1, er = -1;
+        if (f >= 0) {
+          const auto e = detection::symmetric_pose_error(pose[static_cast<std::size_t>(f)],
+                                                         seq[static_cast<std::size_t>(f)].T, sym);
+          et = e.translation;
+          er = e.rotation;
+          ok = f - s < (s == 0 ? 11 : 5) && et <= 0.02 && er <= 5.0 * kDeg;
+        }
+        std::printf("[search] %s seed %u: object from frame %d, tracking at %d (%.1f mm, %.2f deg) %s\n", name, seed,
+                    s, f, 1e3 * et, er / kDeg, ok ? "ok" : "MISSED");
+        if (s == 0) {
+          late_start += ok ? 0 : 1;
+        } else {
+          ++events;
+          recovered += ok ? 1 : 0;
+        }
+      }
+    }
+  }
+  std::sort(search_ms.begin(), search_ms.end());
+  if (!search_ms.empty())
+    std::printf("[search] %zu search frames: median %.1f ms, p95 %.1f ms\n", search_ms.size(),
+                search_ms[search_ms.size() / 2], search_ms[search_ms.size() * 95 / 100]);
+  std::printf("[search] recovered %d of %d returns; %d of %d object-free frames said tracking\n", recovered, events,
+              empty_tracking, empty_frames);
+  EXPECT_EQ(late_start, 0) << "sequences not locked by frame 10 from no pose";
+  EXPECT_GE(recovered, (95 * events + 99) / 100) << "of " << events << " returns";
+  EXPECT_EQ(empty_tracking, 0) << "of " << empty_frames << " object-free frames";
+}
+
+TEST(ObjectSearch, NeverTracksOnObjectFreeImages) {
+  // Clutter backgrounds and no object at all: searched on every frame, never `tracking`.
+  const geometry::PinholeCamera cam = synth::default_camera();
+  auto parsed = model::parse_cao(synth::box_cao(), "box");
+  ASSERT_TRUE(parsed);
+  auto model = std::make_shared<const model::Model>(std::move(*parsed));
+  detection::DetectorParams dp;
+  auto ts = detection::build_templates(*model, cam, dp);
+  ASSERT_TRUE(ts);
+  auto templates = std::make_shared<const detection::TemplateSet>(std::move(*ts));
+  pipeline::SingleObjectTracker tracker(model, cam);
+  tracker.enable_search(templates, pipeline::ObjectSearchParams{}, dp);
+  tracker.start_search();
+  std::mt19937 rng(77u);
+  int tracking = 0, searched = 0, candidates = 0;
+  for (int i = 0; i < 30; ++i) {
+    const cv::Mat img = sc::empty_scene(cam, 0, "", rng);
+    cv::Mat grey;
+    cv::cvtColor(img, grey, cv::COLOR_BGR2GRAY);
+    // Each image twice in a row: a false candidate gets its second frame to be confirmed on.
+    for (int rep = 0; rep < 2; ++rep) {
+      const pipeline::FrameResult fr = tracker.track(io::as_view(grey), io::as_colour_view(img));
+      tracking += fr.report.status == scene::TrackStatus::kTracking ? 1 : 0;
+      searched += fr.search.searched ? 1 : 0;
+      candidates += fr.search.found ? 1 : 0;
+      EXPECT_EQ(fr.report.status, scene::TrackStatus::kSearching) << "image " << i;
+    }
+  }
+  std::printf("[search] object-free: %d frames searched, %d candidates, %d tracking\n", searched, candidates, tracking);
+  EXPECT_EQ(searched, 60);
+  EXPECT_EQ(tracking, 0);
+}
