@@ -2,6 +2,7 @@
 // `v4r serve`: the tracker as a TCP service (docs/protocol.md).
 // Compiled only once apps/v4r links v4r::server (until then the header is not on the path).
 #if __has_include("v4r/server/server.hpp")
+#include <algorithm>
 #include <chrono>
 #include <cstdlib>
 #include <memory>
@@ -118,7 +119,9 @@ int run_serve(ServeArgs& a) {
   a.opt.camera = *cam;
   a.opt.port = static_cast<std::uint16_t>(a.port);
   // A live camera sets the pace itself: each frame is taken as soon as it arrives (unless --fps).
-  if ((io::is_live_input(a.opt.input) || ros2_input) && !a.fps_given) a.opt.fps = 0.0;
+  const bool live_scene =
+      scene && std::any_of(scene->inputs.begin(), scene->inputs.end(), [](const auto& in) { return in->live(); });
+  if ((io::is_live_input(a.opt.input) || ros2_input || live_scene) && !a.fps_given) a.opt.fps = 0.0;
   a.opt.http_port = a.http_port;
   if (a.opt.token.empty()) {
     // The token can also come from the environment, where `ps` does not show it.
