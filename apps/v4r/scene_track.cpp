@@ -16,6 +16,7 @@
 #include "plausibility.hpp"
 #include "pose_csv.hpp"
 #include "progress.hpp"
+#include "scene_inputs.hpp"
 #include "scene_setup.hpp"
 #include "v4r/geometry/se3_jacobians.hpp"
 #include "v4r/io/frame_source.hpp"
@@ -58,27 +59,12 @@ struct CameraInput {
   cv::Mat frame, grey;
 };
 
-/// Opens every camera's input and checks that their lengths agree (when the inputs know them).
+/// Opens every camera's input (open_scene_inputs).
 Expected<std::vector<CameraInput>> open_inputs(const io::SceneFile& file) {
-  std::vector<CameraInput> inputs(file.cameras.size());
-  for (std::size_t c = 0; c < file.cameras.size(); ++c) {
-    const io::SceneCameraSpec& cam = file.cameras[c];
-    if (cam.input.empty())
-      return cam.at.error(fmt::format("camera '{}' has no input: `v4r track --scene` reads every camera's frames "
-                                      "(input: folder, printf pattern or video)",
-                                      cam.name));
-    auto src = io::FrameSource::open(cam.input);
-    if (!src) return cam.input_at.error(fmt::format("the input does not open: {}", src.error().to_string()));
-    inputs[c].source = std::move(*src);
-  }
-  for (std::size_t c = 1; c < inputs.size(); ++c) {
-    const int n0 = inputs[0].source->size_hint(), n = inputs[c].source->size_hint();
-    if (n0 >= 0 && n >= 0 && n != n0)
-      return file.cameras[c].input_at.error(fmt::format(
-          "camera '{}' has {} frames but camera '{}' has {} ({}:{}): the cameras' frames are taken in step, their "
-          "inputs must be of equal length",
-          file.cameras[c].name, n, file.cameras[0].name, n0, file.path, file.cameras[0].input_at.line));
-  }
+  auto sources = open_scene_inputs(file, "v4r track --scene");
+  if (!sources) return sources.error();
+  std::vector<CameraInput> inputs(sources->size());
+  for (std::size_t c = 0; c < inputs.size(); ++c) inputs[c].source = std::move((*sources)[c]);
   return inputs;
 }
 

@@ -2,9 +2,11 @@
 // `v4r serve`: the tracker as a TCP service (docs/protocol.md).
 // Compiled only once apps/v4r links v4r::server (until then the header is not on the path).
 #if __has_include("v4r/server/server.hpp")
+#include <algorithm>
 #include <chrono>
 #include <cstdlib>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -17,6 +19,8 @@
 #include "v4r/io/frame_source.hpp"
 #include "v4r/pipeline/params.hpp"
 #include "v4r/server/server.hpp"
+#include "scene_inputs.hpp"
+#include "scene_setup.hpp"
 #if V4R_HAVE_ROS2
 #include "v4r/ros2/image_source.hpp"
 #include "v4r/ros2/ros2_publisher.hpp"
@@ -30,6 +34,7 @@ namespace {
 struct ServeArgs {
   server::ServerOptions opt;
   std::string camera_path;
+  std::string scene_path;  ///< --scene: every camera (and object) of a scene file
   int port = 5757;
   int http_port = -1;
   std::string config_file;
@@ -41,7 +46,47 @@ struct ServeArgs {
   std::string ros2_frame_id = "camera_optical_frame";
 };
 
+/// `--scene S.yaml`: the scene file's cameras with their inputs, its reference frame and its
+/// objects (each with its init_pose: finding an object without one is not supported yet).
+Expected<server::ServeScene> load_serve_scene(const std::string& path) {
+  auto file = io::load_scene_file(path);
+  if (!file) return file.error();
+  for (const io::SceneCameraSpec& c : file->cameras)
+    if (c.calibration.width <= 0 || c.calibration.height <= 0)
+      return c.at.error(fmt::format("camera '{}': its calibration gives no image size (image_width, image_height), "
+                                    "which `v4r serve --scene` needs",
+                                    c.name));
+  auto inputs = open_scene_inputs(*file, "v4r serve --scene");
+  if (!inputs) return inputs.error();
+  auto setup = build_scene(*file, false);  // models, start poses; errors name the line and field
+  if (!setup) return setup.error();
+  server::ServeScene sc;
+  sc.cameras.assign(setup->scene.cameras().begin(), setup->scene.cameras().end());
+  sc.inputs = std::move(*inputs);
+  sc.reference_frame = file->reference_frame;
+  for (const scene::Object& o : setup->scene.objects())
+    sc.objects.push_back(server::StartObject{o.name, o.model, o.T_ref_obj});
+  return sc;
+}
+
 int run_serve(ServeArgs& a) {
+  std::optional<server::ServeScene> scene;
+  if (!a.scene_path.empty()) {
+    if (!a.opt.input.empty() || !a.camera_path.empty()) {
+      fmt::print(stderr, "v4r serve: error: --scene names the cameras and their inputs: give it without --camera "
+                         "and --input\n");
+      return 1;
+    }
+    auto s = load_serve_scene(a.scene_path);
+    if (!s) {
+      fmt::print(stderr, "v4r serve: error: {}\n", s.error().to_string());
+      return 1;
+    }
+    scene = std::move(*s);
+  } else if (a.opt.input.empty()) {
+    fmt::print(stderr, "v4r serve: error: --input is required (or --scene S.yaml)\n");
+    return 1;
+  }
   const bool ros2_input = a.opt.input.starts_with("ros2:");
   Expected<geometry::PinholeCamera> cam = make_error("");
 #if V4R_HAVE_ROS2
@@ -58,7 +103,9 @@ int run_serve(ServeArgs& a) {
     return 1;
   }
 #endif
-  if (!a.camera_path.empty()) {
+  if (scene) {
+    cam = scene->cameras[0].intrinsics;
+  } else if (!a.camera_path.empty()) {
     cam = io::load_camera(a.camera_path);
   } else if (!ros2_input) {
     fmt::print(stderr, "v4r serve: error: --camera is required (except with --input ros2:..., whose camera_info "
@@ -72,7 +119,9 @@ int run_serve(ServeArgs& a) {
   a.opt.camera = *cam;
   a.opt.port = static_cast<std::uint16_t>(a.port);
   // A live camera sets the pace itself: each frame is taken as soon as it arrives (unless --fps).
-  if ((io::is_live_input(a.opt.input) || ros2_input) && !a.fps_given) a.opt.fps = 0.0;
+  const bool live_scene =
+      scene && std::any_of(scene->inputs.begin(), scene->inputs.end(), [](const auto& in) { return in->live(); });
+  if ((io::is_live_input(a.opt.input) || ros2_input || live_scene) && !a.fps_given) a.opt.fps = 0.0;
   a.opt.http_port = a.http_port;
   if (a.opt.token.empty()) {
     // The token can also come from the environment, where `ps` does not show it.
@@ -119,7 +168,7 @@ int run_serve(ServeArgs& a) {
     return 1;
   }
 #endif
-  auto srv = server::Server::create(a.opt);
+  auto srv = scene ? server::Server::create(a.opt, std::move(*scene)) : server::Server::create(a.opt);
   if (!srv) {
     fmt::print(stderr, "v4r serve: error: {}\n", srv.error().to_string());
     return 1;
@@ -127,7 +176,7 @@ int run_serve(ServeArgs& a) {
   fmt::print("v4r serve: protocol on {}:{}{}{}; input {} at {} fps{}; Ctrl-C stops\n", a.opt.bind, (*srv)->port(),
              a.opt.token.empty() ? "" : " (Auth required)",
              (*srv)->http_port() ? fmt::format(", monitor on http://{}:{}/", a.opt.bind, (*srv)->http_port()) : "",
-             a.opt.input, a.opt.fps, a.opt.paused ? ", paused until Start" : "");
+             a.scene_path.empty() ? a.opt.input : "scene " + a.scene_path, a.opt.fps, a.opt.paused ? ", paused until Start" : "");
   std::fflush(stdout);
   const int rc = (*srv)->run();
   const server::ServerStats st = (*srv)->stats();
@@ -144,7 +193,10 @@ void add_serve_command(CLI::App& app, int& exit_code) {
   serve->add_option("--camera", a->camera_path,
                     "Calibration (OpenCV or ROS camera_info YAML); required except with --input ros2:..., whose "
                     "camera_info is used when it is not given");
-  serve->add_option("--input", a->opt.input, "Image folder, printf pattern (frames/%06d.png), video, camera /dev/videoN, gst:PIPELINE or ros2:/camera")->required();
+  serve->add_option("--input", a->opt.input, "Image folder, printf pattern (frames/%06d.png), video, camera /dev/videoN, gst:PIPELINE or ros2:/camera (required unless --scene)");
+  serve->add_option("--scene", a->scene_path,
+                    "Scene file (docs/scene_file.md): every camera with its input, taken in step, and the objects "
+                    "to track from their init_pose; poses are T_ref_obj in its reference_frame (docs/protocol.md)");
   serve->add_option("--fps", a->opt.fps,
                     "Frames per second the input is played at (0: as fast as processed; a live camera: its own rate)")
       ->check(CLI::Range(0.0, 10000.0))

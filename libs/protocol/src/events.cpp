@@ -1,6 +1,8 @@
 // v4r - robust model-based object tracking. MIT licence.
 // Server -> client lines: events, replies, greeting.
+#include <charconv>
 #include <climits>
+#include <optional>
 #include <unordered_set>
 
 #include "lexer.hpp"
@@ -18,6 +20,39 @@ std::string join(const std::array<double, N>& v) {
   for (std::size_t i = 0; i < N; ++i) {
     if (i > 0) s += ',';
     s += format_number(v[i]);
+  }
+  return s;
+}
+
+/// `NAME:FRAMES:ALIVE,...` (the name is everything before the last two colons).
+std::optional<std::vector<CameraStatus>> parse_cameras(std::string_view text) {
+  std::vector<CameraStatus> out;
+  for (bool more = true; more;) {
+    const std::size_t comma = text.find(',');
+    const std::string_view item = text.substr(0, comma);
+    more = comma != std::string_view::npos;
+    if (more) text = text.substr(comma + 1);
+    const std::size_t c2 = item.rfind(':');
+    if (c2 == std::string_view::npos || c2 == 0) return std::nullopt;
+    const std::size_t c1 = item.rfind(':', c2 - 1);
+    if (c1 == std::string_view::npos || c1 == 0) return std::nullopt;
+    const std::string_view frames = item.substr(c1 + 1, c2 - c1 - 1), alive = item.substr(c2 + 1);
+    CameraStatus c;
+    c.name = std::string(item.substr(0, c1));
+    const auto r = std::from_chars(frames.data(), frames.data() + frames.size(), c.frames);
+    if (frames.empty() || r.ec != std::errc() || r.ptr != frames.data() + frames.size()) return std::nullopt;
+    if (alive != "0" && alive != "1") return std::nullopt;
+    c.alive = alive == "1";
+    out.push_back(std::move(c));
+  }
+  return out;
+}
+
+std::string format_cameras(const std::vector<CameraStatus>& cams) {
+  std::string s;
+  for (const CameraStatus& c : cams) {
+    if (!s.empty()) s += ',';
+    s += c.name + ':' + std::to_string(c.frames) + (c.alive ? ":1" : ":0");
   }
   return s;
 }
@@ -43,7 +78,7 @@ std::optional<ParseError> lex_server(std::string_view line, std::vector<Token>& 
 
 std::variant<ObjectPoseEvent, ParseError> object_pose_from(const std::vector<Token>& tokens) {
   Args a("ObjectPose", std::vector<Token>(tokens.begin() + 1, tokens.end()));
-  a.check_keys({"object", "frame", "stamp", "t", "q", "cov", "quality", "status"}, 0, true);
+  a.check_keys({"object", "frame", "stamp", "t", "q", "cov", "quality", "status", "ref"}, 0, true);
   a.require({"object", "frame", "stamp", "quality", "status"});
   ObjectPoseEvent e;
   e.object = a.name("object");
@@ -57,13 +92,15 @@ std::variant<ObjectPoseEvent, ParseError> object_pose_from(const std::vector<Tok
     e.q = a.vector<4>("q", "qw,qx,qy,qz");
     e.cov = a.vector<36>("cov", "(6x6 row-major)");
   }
+  if (a.has("ref")) e.ref = a.text("ref");
   if (!a.ok()) return a.error();
   return e;
 }
 
 std::variant<SystemStatusEvent, ParseError> system_status_from(const std::vector<Token>& tokens) {
   Args a("SystemStatus", std::vector<Token>(tokens.begin() + 1, tokens.end()));
-  a.check_keys({"frame", "cycle_ms", "features_found", "features_used", "outliers", "overruns", "failed"}, 0, true);
+  a.check_keys({"frame", "cycle_ms", "features_found", "features_used", "outliers", "overruns", "failed", "cameras"}, 0,
+               true);
   a.require({"frame", "cycle_ms", "features_found", "features_used", "outliers", "overruns"});
   SystemStatusEvent e;
   e.frame = a.whole("frame");
@@ -73,6 +110,14 @@ std::variant<SystemStatusEvent, ParseError> system_status_from(const std::vector
   e.outliers = a.whole("outliers");
   e.overruns = a.whole("overruns");
   if (a.has("failed")) e.failed = a.whole("failed");
+  if (a.has("cameras")) {
+    auto cams = parse_cameras(a.text("cameras"));
+    if (!cams) {
+      a.fail(code::kBadArgument, "cameras=: expected NAME:FRAMES:ALIVE,... (ALIVE 0 or 1)", 0);
+    } else {
+      e.cameras = std::move(*cams);
+    }
+  }
   if (!a.ok()) return a.error();
   return e;
 }
@@ -139,16 +184,19 @@ std::string format(const ObjectPoseEvent& e) {
   const std::string pose = e.status == TrackStatus::kSearching
                                ? std::string()
                                : " t=" + join(e.t) + " q=" + join(e.q) + " cov=" + join(e.cov);
-  return "ObjectPose object=" + format_value(e.object) + " frame=" + std::to_string(e.frame) +
-         " stamp=" + format_number(e.stamp) + pose + " quality=" + format_number(e.quality) +
-         " status=" + std::string(to_string(e.status));
+  std::string s = "ObjectPose object=" + format_value(e.object) + " frame=" + std::to_string(e.frame) +
+                  " stamp=" + format_number(e.stamp) + pose + " quality=" + format_number(e.quality) +
+                  " status=" + std::string(to_string(e.status));
+  if (!e.ref.empty()) s += " ref=" + format_value(e.ref);
+  return s;
 }
 
 std::string format(const SystemStatusEvent& e) {
   return "SystemStatus frame=" + std::to_string(e.frame) + " cycle_ms=" + format_number(e.cycle_ms) +
          " features_found=" + std::to_string(e.features_found) + " features_used=" + std::to_string(e.features_used) +
          " outliers=" + std::to_string(e.outliers) + " overruns=" + std::to_string(e.overruns) +
-         (e.failed > 0 ? " failed=" + std::to_string(e.failed) : std::string());
+         (e.failed > 0 ? " failed=" + std::to_string(e.failed) : std::string()) +
+         (e.cameras.empty() ? std::string() : " cameras=" + format_value(format_cameras(e.cameras)));
 }
 
 std::variant<ObjectPoseEvent, ParseError> parse_object_pose(std::string_view line) {

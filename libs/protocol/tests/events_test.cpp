@@ -116,6 +116,26 @@ TEST(ProtocolEvents, SystemStatusExactTextAndRoundTrip) {
   }
 }
 
+TEST(ProtocolEvents, SceneFieldsRefAndCamerasAreSentOnlyWhenSetAndRoundTrip) {
+  // `v4r serve --scene`: the pose's reference frame and the per-camera status are trailing keys.
+  vp::ObjectPoseEvent p = simple_pose();
+  const std::string plain = vp::format(p);
+  EXPECT_EQ(plain.find(" ref="), std::string::npos);
+  p.ref = "left";
+  EXPECT_EQ(vp::format(p), plain + " ref=left");
+  EXPECT_EQ(get_ok(vp::parse_object_pose(vp::format(p))), p);
+
+  vp::SystemStatusEvent s{41, 12.375, 120, 97, 11, 3};
+  const std::string line = vp::format(s);
+  s.cameras = {{"left", 42, true}, {"right", 41, false}};
+  EXPECT_EQ(vp::format(s), line + " cameras=left:42:1,right:41:0");
+  EXPECT_EQ(get_ok(vp::parse_system_status(vp::format(s))), s);
+  for (const char* bad : {"left", "left:1", "left:x:1", "left:1:2", ":1:1", "left:1:1,", "left:-1:1"}) {
+    const auto r = vp::parse_system_status(line + " cameras=" + bad);
+    EXPECT_TRUE(std::holds_alternative<vp::ParseError>(r)) << bad;
+  }
+}
+
 TEST(ProtocolEvents, UnknownKeysAreIgnoredForNewerServers) {
   const std::string line = vp::format(simple_pose()) + " latency_ms=3.2 note=\"new field\"";
   EXPECT_EQ(get_ok(vp::parse_object_pose(line)), simple_pose());

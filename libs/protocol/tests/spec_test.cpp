@@ -84,7 +84,7 @@ TEST(ProtocolSpec, EveryErrorCodeIsDocumented) {
 TEST(ProtocolSpec, EventAndCommandExamplesParse) {
   const std::string spec = read_spec();
   ASSERT_FALSE(spec.empty()) << V4R_SOURCE_DIR "/docs/protocol.md not found";
-  int commands = 0, events = 0;
+  int commands = 0, events = 0, scene_events = 0;
   std::istringstream lines(spec);
   for (std::string line; std::getline(lines, line);) {
     if (line.rfind("C: ", 0) == 0) {
@@ -100,12 +100,20 @@ TEST(ProtocolSpec, EventAndCommandExamplesParse) {
     } else if (line.rfind("SystemStatus frame=41", 0) == 0) {
       EXPECT_TRUE(std::holds_alternative<vp::SystemStatusEvent>(vp::parse_system_status(line))) << line;
       ++events;
+    } else if (line.rfind("S: SystemStatus ", 0) == 0) {  // the example of `serve --scene`
+      const auto r = vp::parse_system_status(line.substr(3));
+      EXPECT_TRUE(std::holds_alternative<vp::SystemStatusEvent>(r)) << line;
+      if (const auto* e = std::get_if<vp::SystemStatusEvent>(&r)) {
+        EXPECT_EQ(e->cameras.size(), 2u) << line;
+      }
+      ++scene_events;
     } else if (line.rfind("S: OK ", 0) == 0 || line.rfind("S: Hello", 0) == 0) {
       EXPECT_TRUE(std::holds_alternative<vp::ServerMessage>(vp::parse_server_line(line.substr(3)))) << line;
     }
   }
   EXPECT_GE(commands, 12);
   EXPECT_EQ(events, 2);
+  EXPECT_EQ(scene_events, 1);
 }
 
 TEST(ProtocolSpec, InlineModelExampleHasTheStatedLength) {

@@ -292,6 +292,15 @@ Server::Server(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 Server::~Server() { stop(); }
 
 Expected<std::unique_ptr<Server>> Server::create(ServerOptions opt) {
+  auto source = io::FrameSource::open(opt.input);
+  if (!source) return source.error();
+  ServeScene one;
+  one.cameras.push_back(scene::Camera{"camera", opt.camera, geometry::SE3()});
+  one.inputs.push_back(std::move(*source));
+  return create(std::move(opt), std::move(one));
+}
+
+Expected<std::unique_ptr<Server>> Server::create(ServerOptions opt, ServeScene scene) {
   if (!std::isfinite(opt.fps) || opt.fps < 0.0) return make_error("--fps must be >= 0");
   if (opt.max_clients == 0) return make_error("--max-clients must be > 0");
   std::string bind = opt.bind == "localhost" ? std::string("127.0.0.1") : opt.bind;
@@ -310,8 +319,8 @@ Expected<std::unique_ptr<Server>> Server::create(ServerOptions opt) {
     logs = std::move(*l);
   }
 
-  auto source = io::FrameSource::open(opt.input);
-  if (!source) return source.error();
+  if (scene.cameras.empty() || scene.inputs.size() != scene.cameras.size())
+    return make_error("the scene needs one input per camera");
   auto impl = std::make_unique<Impl>();
   impl->opt_ = opt;
   impl->data_dirs_ = std::move(*data);
@@ -326,7 +335,11 @@ Expected<std::unique_ptr<Server>> Server::create(ServerOptions opt) {
   so.default_log_file = opt.log_file;
   so.log_dirs = std::move(logs);
   so.object_hook = opt.object_hook;
-  impl->service_ = std::make_unique<TrackingService>(std::move(so), std::move(*source));
+  so.camera = scene.cameras[0].intrinsics;
+  so.cameras = std::move(scene.cameras);
+  so.reference_frame = std::move(scene.reference_frame);
+  so.objects = std::move(scene.objects);
+  impl->service_ = std::make_unique<TrackingService>(std::move(so), std::move(scene.inputs));
   if (auto r = impl->service_->open(); !r) return r.error();
 
   auto acceptor = listen(impl->io_, addr, opt.port);

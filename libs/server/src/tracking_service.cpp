@@ -56,13 +56,30 @@ constexpr char kLogHeader[] =
 
 }  // namespace
 
+namespace {
+std::vector<std::unique_ptr<io::FrameSource>> one_source(std::unique_ptr<io::FrameSource> source) {
+  std::vector<std::unique_ptr<io::FrameSource>> v;
+  v.push_back(std::move(source));
+  return v;
+}
+}  // namespace
+
 TrackingService::TrackingService(ServiceOptions opt, std::unique_ptr<io::FrameSource> source)
+    : TrackingService(std::move(opt), one_source(std::move(source))) {}
+
+TrackingService::TrackingService(ServiceOptions opt, std::vector<std::unique_ptr<io::FrameSource>> sources)
     : opt_(std::move(opt)),
-      source_(std::move(source)),
+      sources_(std::move(sources)),
       params_(opt_.params),
       registry_(pipeline::make_registry(params_)),
       cycle_(params_) {
-  scene_.add_camera(scene::Camera{"camera", opt_.camera, geometry::SE3()});
+  if (opt_.cameras.empty()) opt_.cameras.push_back(scene::Camera{"camera", opt_.camera, geometry::SE3()});
+  for (const scene::Camera& c : opt_.cameras) scene_.add_camera(c);
+  frames_in_.resize(opt_.cameras.size());
+  greys_.resize(opt_.cameras.size());
+  camera_frames_.assign(opt_.cameras.size(), 0);
+  camera_alive_.assign(opt_.cameras.size(), 1);
+  add_start_objects();
   paused_ = opt_.paused;
   if (opt_.search.enabled)
     search_ = std::make_unique<ServiceSearch>(params_, opt_.search, opt_.detect, opt_.camera, opt_.cache_dir);
@@ -75,16 +92,65 @@ TrackingService::~TrackingService() {
 }
 
 Expected<void> TrackingService::open() {
-  if (!source_) return make_error("no input");
-  auto more = source_->next(frame_);
+  if (sources_.size() != opt_.cameras.size() ||
+      std::any_of(sources_.begin(), sources_.end(), [](const auto& p) { return p == nullptr; }))
+    return make_error("no input");
+  auto more = read_in_step();
   if (!more) return more.error();
   if (!*more) return make_error("the input holds no frames");
-  if (frame_.cols != opt_.camera.width || frame_.rows != opt_.camera.height)
-    return make_error(source_->current_name(), 0, 0,
-                      fmt::format("image is {}x{} but the camera calibration is {}x{}", frame_.cols, frame_.rows,
-                                  opt_.camera.width, opt_.camera.height));
   have_frame_ = true;
   return {};
+}
+
+Expected<bool> TrackingService::read_in_step() {
+  // Frame k of every camera's input makes frame k of the scene: one that ends (or fails) while
+  // the others go on ends the scene's input.
+  std::size_t ended = 0;
+  for (std::size_t c = 0; c < sources_.size(); ++c) {
+    auto more = sources_[c]->next(frames_in_[c]);
+    if (!more || !*more) {
+      camera_alive_[c] = 0;
+      ++ended;
+      if (!more) return more.error();
+      continue;
+    }
+    ++camera_frames_[c];
+    const geometry::PinholeCamera& k = opt_.cameras[c].intrinsics;
+    const cv::Mat& f = frames_in_[c];
+    if (f.cols != k.width || f.rows != k.height)
+      return make_error(sources_[c]->current_name(), 0, 0,
+                        fmt::format("image is {}x{} but the camera calibration is {}x{}{}", f.cols, f.rows, k.width,
+                                    k.height, sources_.size() > 1 ? " (camera '" + opt_.cameras[c].name + "')" : ""));
+  }
+  if (ended == 0) return true;
+  if (ended < sources_.size()) {
+    for (std::size_t c = 0; c < sources_.size(); ++c)
+      if (!camera_alive_[c])
+        return make_error(fmt::format("camera '{}' ended after {} frames while the other cameras go on: the cameras' "
+                                      "frames are taken in step",
+                                      opt_.cameras[c].name, camera_frames_[c]));
+  }
+  return false;
+}
+
+void TrackingService::add_start_objects() {
+  for (const StartObject& so : opt_.objects) {
+    ObjectEntry e;
+    e.name = so.name;
+    e.has_pose = true;
+    e.pose = so.T_ref_obj;
+    objects_.push_back(std::move(e));
+    (void)set_model(objects_.back(), so.model, "AddModel");
+  }
+}
+
+std::vector<protocol::CameraStatus> TrackingService::camera_status() const {
+  std::vector<protocol::CameraStatus> v;
+  if (opt_.reference_frame.empty()) return v;  // one camera: the protocol as it was
+  for (std::size_t c = 0; c < opt_.cameras.size(); ++c)
+    v.push_back(protocol::CameraStatus{opt_.cameras[c].name, static_cast<std::uint64_t>(camera_frames_[c]),
+                                       camera_alive_[c] != 0});
+  return v;
 }
 
 void TrackingService::start() {
@@ -202,19 +268,13 @@ void TrackingService::frame_cycle(Clock::time_point released) {
 }
 
 void TrackingService::load_next_frame() {
-  auto more = source_->next(frame_);
+  auto more = read_in_step();
   if (!more) {
     V4R_LOG_ERROR("v4r serve: input: {}", more.error().to_string());
     end_ = true;
     return;
   }
   if (!*more) {
-    end_ = true;
-    return;
-  }
-  if (frame_.cols != opt_.camera.width || frame_.rows != opt_.camera.height) {
-    V4R_LOG_ERROR("v4r serve: {}: image is {}x{} but the camera calibration is {}x{}", source_->current_name(),
-                  frame_.cols, frame_.rows, opt_.camera.width, opt_.camera.height);
     end_ = true;
     return;
   }
@@ -414,7 +474,9 @@ std::string TrackingService::on(const protocol::RemoveFeature& c) {
 std::string TrackingService::on(const protocol::SetPose& c) {
   ObjectEntry* e = find(c.object);
   if (!e) return format_err("SetPose", code::kUnknownObject, fmt::format("no object '{}'", c.object));
-  if (c.t[2] <= 0.0) return format_err("SetPose", code::kOutOfRange, "the pose puts the object behind the camera (tz <= 0)");
+  // With a scene (--scene) the pose is T_ref_obj, in a reference frame that need not look along z.
+  if (opt_.reference_frame.empty() && c.t[2] <= 0.0)
+    return format_err("SetPose", code::kOutOfRange, "the pose puts the object behind the camera (tz <= 0)");
   // Plausibility (the same limits as `v4r track`): a mistake of units, not a pose to track from.
   if (const double angle = vec(c.r).norm(); angle > 2.0 * M_PI)
     return format_err("SetPose", code::kOutOfRange,
@@ -528,25 +590,30 @@ std::string TrackingService::on(const protocol::Log& c) {
 }
 
 void TrackingService::process_frame(Clock::time_point released) {
-  if (frame_.channels() == 3) {
-    cv::cvtColor(frame_, grey_, cv::COLOR_BGR2GRAY);
-  } else if (frame_.channels() == 4) {
-    cv::cvtColor(frame_, grey_, cv::COLOR_BGRA2GRAY);
-  } else {
-    grey_ = frame_;
+  std::vector<pipeline::CameraImage> images(frames_in_.size());
+  for (std::size_t c = 0; c < frames_in_.size(); ++c) {
+    const cv::Mat& in = frames_in_[c];
+    if (in.channels() == 3) {
+      cv::cvtColor(in, greys_[c], cv::COLOR_BGR2GRAY);
+    } else if (in.channels() == 4) {
+      cv::cvtColor(in, greys_[c], cv::COLOR_BGRA2GRAY);
+    } else {
+      greys_[c] = in;
+    }
+    images[c] = pipeline::CameraImage{io::as_view(greys_[c]), io::as_colour_view(in)};
   }
+  const io::FrameSource& source = *sources_[0];  // the first camera's input stamps the frame
   const std::int64_t index = next_frame_++;
   // A live camera stamps its frames with their capture time (frames it dropped leave gaps), a
   // frame with a stamp of its own (ROS image) with that; other inputs by their index at the play rate.
   double stamp = opt_.fps > 0.0 ? static_cast<double>(index) / opt_.fps : -1.0;
-  if (const double captured = source_->capture_time_s(); source_->live() && captured >= 0.0) {
+  if (const double captured = source.capture_time_s(); source.live() && captured >= 0.0) {
     if (first_capture_s_ < 0.0) first_capture_s_ = captured;
     stamp = captured - first_capture_s_;
   }
-  if (const double own = source_->stamp_s(); own >= 0.0) stamp = own;  // e.g. a ROS image's header
-  const pipeline::CameraImage img{io::as_view(grey_), io::as_colour_view(frame_)};
-  const pipeline::CycleReport& rep = cycle_.process(scene_, std::span<const pipeline::CameraImage>(&img, 1), stamp);
-  if (search_) search_->update(scene_, std::span<const pipeline::CameraImage>(&img, 1), rep.stamp_s);
+  if (const double own = source.stamp_s(); own >= 0.0) stamp = own;  // e.g. a ROS image's header
+  const pipeline::CycleReport& rep = cycle_.process(scene_, std::span<const pipeline::CameraImage>(images), stamp);
+  if (search_) search_->update(scene_, std::span<const pipeline::CameraImage>(images), rep.stamp_s);
 
   auto ev = std::make_shared<FrameEvents>();
   ev->frame = index;
@@ -585,7 +652,7 @@ void TrackingService::process_frame(Clock::time_point released) {
     p.object = o.name;
     p.frame = static_cast<std::uint64_t>(index);
     p.stamp = rep.stamp_s;
-    const geometry::SE3 T_cam_obj = scene_.cameras()[0].T_ref_cam.inverse() * o.T_ref_obj;
+    const geometry::SE3 T_cam_obj = T_out_ref() * o.T_ref_obj;
     const Eigen::Vector3d& t = T_cam_obj.translation();
     const Eigen::Quaterniond& q = T_cam_obj.quaternion();
     p.t = {t.x(), t.y(), t.z()};
@@ -595,6 +662,7 @@ void TrackingService::process_frame(Clock::time_point released) {
       for (int cc = 0; cc < 6; ++cc) p.cov[static_cast<std::size_t>(rr * 6 + cc)] = cov(rr, cc);
     p.quality = std::isfinite(o.quality) ? std::clamp(o.quality, 0.0, 1.0) : 0.0;
     p.status = to_protocol(o.status);
+    p.ref = opt_.reference_frame;
     ev->pose_lines.push_back(shared_line(protocol::format(p)));
     ev->poses.push_back(std::move(p));
   }
@@ -615,7 +683,7 @@ void TrackingService::process_frame(Clock::time_point released) {
     p.q = {q.w(), q.x(), q.y(), q.z()};
     filter::PoseFilter f = e.hold;
     f.predict(std::max(0.0, rep.stamp_s - e.hold_stamp));
-    const geometry::SE3 T_cam_ref = scene_.cameras()[0].T_ref_cam.inverse();
+    const geometry::SE3 T_cam_ref = T_out_ref();
     const geometry::Matrix6d Ad = geometry::adjoint(T_cam_ref);
     const geometry::Matrix6d cov =
         geometry::translation_rotation_covariance(e.held_pose, Ad * f.pose_covariance() * Ad.transpose());
@@ -623,10 +691,12 @@ void TrackingService::process_frame(Clock::time_point released) {
       for (int cc = 0; cc < 6; ++cc) p.cov[static_cast<std::size_t>(rr * 6 + cc)] = cov(rr, cc);
     p.quality = 0.0;
     p.status = protocol::TrackStatus::kFailed;
+    p.ref = opt_.reference_frame;
     ev->pose_lines.push_back(shared_line(protocol::format(p)));
     ev->poses.push_back(std::move(p));
   }
   st.features_found = st.features_used + st.outliers;
+  st.cameras = camera_status();
   tracked_ = tracked;
   failed_ = static_cast<int>(st.failed);
   ev->status_line = shared_line(protocol::format(st));
@@ -649,10 +719,11 @@ void TrackingService::publish_overlay(const pipeline::CycleReport& rep, std::int
   // The live view is a convenience: a failure to draw it (OpenCV, memory) costs this picture only.
   try {
     auto vis = std::make_shared<cv::Mat>();
-    if (frame_.channels() == 3) {
-      frame_.copyTo(*vis);
+    // The first camera's view (the monitor shows one picture).
+    if (frames_in_[0].channels() == 3) {
+      frames_in_[0].copyTo(*vis);
     } else {
-      cv::cvtColor(grey_, *vis, cv::COLOR_GRAY2BGR);
+      cv::cvtColor(greys_[0], *vis, cv::COLOR_GRAY2BGR);
     }
     viz::draw_overlay(*vis, scene_, cycle_, 0, rep);
     on_overlay_(std::move(vis), index);
@@ -666,7 +737,7 @@ void TrackingService::object_failed(std::size_t i, const std::string& error, dou
   if (ObjectEntry* e = find(o.name)) {
     e->failed = true;
     e->error = error;
-    e->held_pose = scene_.cameras()[0].T_ref_cam.inverse() * o.T_ref_obj;
+    e->held_pose = T_out_ref() * o.T_ref_obj;
     e->hold = o.filter;
     if (!e->hold.initialised()) e->hold.reset(o.T_ref_obj, o.covariance);
     e->hold_stamp = stamp;
@@ -684,10 +755,15 @@ void TrackingService::count_objects() {
   failed_ = static_cast<int>(std::count_if(objects_.begin(), objects_.end(), [](const ObjectEntry& e) { return e.failed; }));
 }
 
+geometry::SE3 TrackingService::T_out_ref() const {
+  // Published poses: T_ref_obj with a named reference frame (--scene), else T_cam_obj of the one camera.
+  return opt_.reference_frame.empty() ? scene_.cameras()[0].T_ref_cam.inverse() : geometry::SE3();
+}
+
 geometry::Matrix6d TrackingService::published_covariance(const scene::Object& o) const {
   // The cycle keeps o.covariance honest (the prediction's, growing, while lost). Published: of
   // (translation, rotation) of T_cam_obj in the camera frame, as poses.csv and ROS have it.
-  const geometry::SE3 T_cam_ref = scene_.cameras()[0].T_ref_cam.inverse();
+  const geometry::SE3 T_cam_ref = T_out_ref();
   const geometry::Matrix6d Ad = geometry::adjoint(T_cam_ref);
   return geometry::translation_rotation_covariance(T_cam_ref * o.T_ref_obj, Ad * o.covariance * Ad.transpose());
 }

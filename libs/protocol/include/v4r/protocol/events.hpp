@@ -17,9 +17,11 @@
 namespace v4r::protocol {
 
 /// \brief `ObjectPose object=ID frame=N stamp=S t=tx,ty,tz q=qw,qx,qy,qz cov=<36> quality=Q
-/// status=tracking|degraded|lost|failed`: the pose of one object after one frame; or
-/// `ObjectPose object=ID frame=N stamp=S quality=Q status=searching` (no pose: not found yet, or
-/// lost and searched again; t, q and cov are then left at their defaults).
+/// status=tracking|degraded|lost|failed [ref=FRAME]`: the pose of one object after one frame; or
+/// `ObjectPose object=ID frame=N stamp=S quality=Q status=searching [ref=FRAME]` (no pose: not
+/// found yet, or lost and searched again; t, q and cov are then left at their defaults). With
+/// `ref=` (`v4r serve --scene`) the pose and covariance are T_ref_obj in the named reference frame
+/// of the scene file; without it, T_cam_obj of the one camera.
 struct ObjectPoseEvent {
   std::string object;
   std::uint64_t frame = 0;  ///< input frame index, counted from 0
@@ -31,11 +33,21 @@ struct ObjectPoseEvent {
   std::array<double, 36> cov{};
   double quality = 0.0;  ///< 0 (no support) .. 1 (all expected features found, no outliers)
   TrackStatus status = TrackStatus::kLost;
+  std::string ref{};  ///< `ref=`: the reference frame of t, q and cov; empty: the camera (not sent)
   bool operator==(const ObjectPoseEvent&) const = default;
 };
 
+/// \brief One camera of a scene in SystemStatus: `NAME:FRAMES:ALIVE`.
+struct CameraStatus {
+  std::string name;
+  std::uint64_t frames = 0;  ///< frames read from its input so far
+  bool alive = true;         ///< its input still delivers frames (false: ended or failed)
+  bool operator==(const CameraStatus&) const = default;
+};
+
 /// \brief `SystemStatus frame=N cycle_ms=X features_found=A features_used=B outliers=C
-/// overruns=D [failed=F]`: one vision cycle, summed over all objects.
+/// overruns=D [failed=F] [cameras=NAME:FRAMES:ALIVE,...]`: one vision cycle, summed over all
+/// objects; `cameras=` (`v4r serve --scene`) per camera of the scene, in scene-file order.
 struct SystemStatusEvent {
   std::uint64_t frame = 0;
   double cycle_ms = 0.0;  ///< wall time of the cycle, milliseconds
@@ -44,6 +56,7 @@ struct SystemStatusEvent {
   std::uint64_t outliers = 0;       ///< found but rejected as outliers
   std::uint64_t overruns = 0;       ///< cycles over the time budget since the start
   std::uint64_t failed = 0;         ///< objects whose cycle failed (`failed=N`, sent only when > 0)
+  std::vector<CameraStatus> cameras{};  ///< `cameras=`, sent only when not empty
   bool operator==(const SystemStatusEvent&) const = default;
 };
 

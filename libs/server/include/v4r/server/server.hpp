@@ -12,7 +12,10 @@
 #include "v4r/core/clock.hpp"
 #include "v4r/core/expected.hpp"
 #include "v4r/geometry/camera.hpp"
+#include "v4r/io/frame_source.hpp"
 #include "v4r/pipeline/object_search.hpp"
+#include "v4r/scene/scene.hpp"
+#include "v4r/server/tracking_service.hpp"
 #include "v4r/pipeline/vision_cycle.hpp"
 
 namespace v4r::server {
@@ -51,6 +54,15 @@ struct ServerOptions {
   /// events, after the vision cycle; must not block (and what it throws is caught and counted as
   /// a fault). Empty: none.
   std::function<void(const FrameEvents& frame)> frame_observer;
+};
+
+/// \brief `v4r serve --scene`: every camera of a scene file with its input, the reference frame
+/// that ObjectPose names, and the objects tracked from the first frame.
+struct ServeScene {
+  std::vector<scene::Camera> cameras;                      ///< with T_ref_cam, in scene-file order
+  std::vector<std::unique_ptr<io::FrameSource>> inputs;    ///< one per camera, read in step
+  std::string reference_frame;                             ///< ObjectPose `ref=`
+  std::vector<StartObject> objects;
 };
 
 /// \brief Counters of a running server (read from any thread).
@@ -93,6 +105,8 @@ class Server {
   /// Validates the options (a non-loopback bind needs a token), opens the input (checking its
   /// first frame against the calibration) and binds the ports. Nothing runs yet.
   static Expected<std::unique_ptr<Server>> create(ServerOptions opt);
+  /// The same with a scene of several cameras (`opt.camera` and `opt.input` are not used).
+  static Expected<std::unique_ptr<Server>> create(ServerOptions opt, ServeScene scene);
   ~Server();
   Server(const Server&) = delete;
   Server& operator=(const Server&) = delete;

@@ -33,9 +33,22 @@
 
 namespace v4r::server {
 
+/// \brief An object the service starts with (`v4r serve --scene`: the scene file's objects).
+struct StartObject {
+  std::string name;
+  std::shared_ptr<const model::Model> model;
+  geometry::SE3 T_ref_obj;  ///< its start pose in the reference frame
+};
+
 /// \brief Set-up of the tracking thread.
 struct ServiceOptions {
   geometry::PinholeCamera camera;  ///< calibration of the input (the scene's only camera, reference frame)
+  /// `v4r serve --scene`: the scene's cameras (with T_ref_cam), one input each, in this order;
+  /// empty: one camera, "camera", of calibration `camera`, which is the reference frame.
+  std::vector<scene::Camera> cameras;
+  /// Non-empty (with `cameras`): ObjectPose names it (`ref=`), SystemStatus reports per camera.
+  std::string reference_frame;
+  std::vector<StartObject> objects;  ///< tracked from the first frame (AddObject + AddModel + SetPose)
   double fps = 30.0;               ///< frames per second the input is played at; <= 0: as fast as processed
   bool paused = false;             ///< hold at frame 0 until Start
   pipeline::CycleParams params;    ///< initial tracker parameters
@@ -97,11 +110,14 @@ class TrackingService {
   using Request = std::variant<protocol::Command, ModelReady>;
 
   TrackingService(ServiceOptions opt, std::unique_ptr<io::FrameSource> source);
+  /// One input per camera of `opt.cameras` (in that order), read in step: frame k of every input
+  /// makes frame k of the service.
+  TrackingService(ServiceOptions opt, std::vector<std::unique_ptr<io::FrameSource>> sources);
   ~TrackingService();
   TrackingService(const TrackingService&) = delete;
   TrackingService& operator=(const TrackingService&) = delete;
 
-  /// Reads the first frame and checks it against the calibration. Call once, before start().
+  /// Reads the first frame (of every input) and checks it against the calibration. Call once, before start().
   Expected<void> open();
   /// Callbacks, called on the tracking thread; set before start().
   void set_frame_callback(FrameFn fn) { on_frame_ = std::move(fn); }
@@ -159,11 +175,15 @@ class TrackingService {
   std::string apply_command(const protocol::Command& c);
   std::string set_model(ObjectEntry& e, std::shared_ptr<const model::Model> m, std::string_view cmd);
   void load_next_frame();
+  Expected<bool> read_in_step();
+  void add_start_objects();
+  [[nodiscard]] std::vector<protocol::CameraStatus> camera_status() const;
   void rebuild_models();
   void process_frame(Clock::time_point released);
   void frame_cycle(Clock::time_point released);
   void object_failed(std::size_t scene_index, const std::string& error, double stamp);
   void count_objects();
+  [[nodiscard]] geometry::SE3 T_out_ref() const;
   [[nodiscard]] geometry::Matrix6d published_covariance(const scene::Object& o) const;
   void publish_overlay(const pipeline::CycleReport& rep, std::int64_t index);
   ObjectEntry* find(const std::string& name);
@@ -186,7 +206,7 @@ class TrackingService {
   std::string feature_changed(ObjectEntry& e, const char* cmd, const std::string& id, Expected<void> r);
 
   ServiceOptions opt_;
-  std::unique_ptr<io::FrameSource> source_;
+  std::vector<std::unique_ptr<io::FrameSource>> sources_;  ///< one per camera of the scene
   FrameFn on_frame_;
   OverlayFn on_overlay_;
 
@@ -196,7 +216,9 @@ class TrackingService {
   ParamRegistry registry_;
   pipeline::VisionCycle cycle_;
   std::vector<ObjectEntry> objects_;
-  cv::Mat frame_, grey_;
+  std::vector<cv::Mat> frames_in_, greys_;     ///< per camera: the frame read, in grey
+  std::vector<std::int64_t> camera_frames_;    ///< per camera: frames read from its input
+  std::vector<char> camera_alive_;             ///< per camera: its input still delivers frames
   bool have_frame_ = false;
   std::int64_t next_frame_ = 0;
   double first_capture_s_ = -1.0;  ///< live input: capture time of the first frame (steady clock, s)
