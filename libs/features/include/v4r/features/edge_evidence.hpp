@@ -11,8 +11,8 @@ namespace v4r::features {
 
 /// \brief Settings of the edge-evidence test.
 struct EdgeEvidenceParams {
-  double step_px = 12.0;         ///< spacing of the samples along a projected edge, pixels
-  int max_samples_per_edge = 16;  ///< longer edges are sampled more sparsely
+  double step_px = 6.0;          ///< spacing of the samples along a projected edge, pixels
+  int max_samples_per_edge = 40;  ///< longer edges are sampled more sparsely
   int search_px = 2;             ///< a sample looks for its edge this far on either side, pixels (at most 8)
   double max_angle_rad = 0.35;   ///< largest angle between the image gradient and the predicted edge normal
   float min_gradient = 3.0f;     ///< floor of the gradient threshold, grey levels per pixel
