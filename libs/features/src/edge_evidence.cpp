@@ -60,6 +60,7 @@ bool EdgeEvidence::add_sample(const image::ImageView& img, const Eigen::Vector2d
     return 0.5f * (v[i + 1] - v[i - 1]);
   };
   const float thr = std::max(threshold, p_.min_gradient);
+  const float cos_max = static_cast<float>(std::cos(p_.max_angle_rad));
   // A match is a local maximum of the gradient across (the edge's position, not the flank of a
   // blurred edge a few pixels away) within search_px, strong enough and oriented along the edge.
   for (int k = 0; k <= 2 * search; ++k) {
@@ -69,7 +70,7 @@ bool EdgeEvidence::add_sample(const image::ImageView& img, const Eigen::Vector2d
     const float g = std::abs(gm);
     if (g < thr || g < std::abs(grad_n(o - 1)) || g < std::abs(grad_n(o + 1))) continue;
     const float gt = ge[static_cast<std::size_t>(o + reach)];
-    if (gm * gm >= cos2_max_ * (gm * gm + gt * gt)) {  // |angle| <= max_angle_rad (cos > 0)
+    if (g >= cos_max * std::sqrt(gm * gm + gt * gt)) {
       ++matched_;
       return true;
     }

@@ -1,8 +1,6 @@
 // v4r - robust model-based object tracking. MIT licence.
 #pragma once
 
-#include <cmath>
-
 #include <Eigen/Core>
 
 #include "v4r/image/image_view.hpp"
@@ -29,13 +27,9 @@ class EdgeEvidence {
  public:
   static constexpr int kMaxSearch = 8;
   static constexpr int kAlong = 2;  ///< the profile is averaged over 2 * kAlong + 1 pixels along the edge
-  explicit EdgeEvidence(const EdgeEvidenceParams& p = {}) { set_params(p); }
+  explicit EdgeEvidence(const EdgeEvidenceParams& p = {}) : p_(p) {}
   [[nodiscard]] const EdgeEvidenceParams& params() const { return p_; }
-  void set_params(const EdgeEvidenceParams& p) {
-    p_ = p;
-    const double c = std::cos(p.max_angle_rad);
-    cos2_max_ = static_cast<float>(c > 0.0 ? c * c : 0.0);
-  }
+  void set_params(const EdgeEvidenceParams& p) { p_ = p; }
 
   /// Starts a new count.
   void reset() { samples_ = matched_ = 0; }
@@ -56,7 +50,6 @@ class EdgeEvidence {
 
  private:
   EdgeEvidenceParams p_;
-  float cos2_max_ = 1.0f;  // cos^2(max_angle_rad) (0 beyond 90 degrees: any orientation)
   int samples_ = 0, matched_ = 0;
 };
 
