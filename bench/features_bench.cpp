@@ -8,7 +8,6 @@
 #include <random>
 #include <vector>
 
-#include "v4r/features/edge_evidence.hpp"
 #include "v4r/features/line_tracker.hpp"
 #include "v4r/image/colour_view.hpp"
 
@@ -121,28 +120,6 @@ void BM_LineTrackRowsCandidates(benchmark::State& st) {
   run(st, img, p, 200.0);
 }
 BENCHMARK(BM_LineTrackRowsCandidates)->ArgsProduct({{12, 24, 48}, {3, 4}});
-
-// ---------------------------------------------------------------------------------------------
-// Edge evidence (status from the image): 40 samples along a 240-px edge, as the cycle tests every
-// visible model edge after the solve. `offset` pixels across: 0 = on the edge (matches at once),
-// 2 = at the end of the search, 8 = beside it (no match: the whole profile is computed).
-
-void BM_EdgeEvidenceSegment(benchmark::State& st) {
-  static const EdgeImage img(false);
-  v4r::features::EdgeEvidence ev;
-  const v4r::image::ImageView view = img.view();
-  const Eigen::Vector2d off = static_cast<double>(st.range(0)) * img.normal;
-  const Eigen::Vector2d a = img.centre - 120.0 * img.dir + off, b = img.centre + 120.0 * img.dir + off;
-  int matched = 0;
-  for (auto _ : st) {
-    ev.reset();
-    matched = ev.add_segment(view, a, b, 10.0f);
-    benchmark::DoNotOptimize(matched);
-  }
-  st.counters["samples"] = ev.samples();
-  st.counters["matched"] = matched;
-}
-BENCHMARK(BM_EdgeEvidenceSegment)->Arg(0)->Arg(2)->Arg(8);
 
 // ---------------------------------------------------------------------------------------------
 // Cue integration (paper 4.1): cost of the appearance check of a learned object side.

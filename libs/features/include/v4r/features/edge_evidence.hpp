@@ -26,7 +26,6 @@ struct EdgeEvidenceParams {
 class EdgeEvidence {
  public:
   static constexpr int kMaxSearch = 8;
-  static constexpr int kAlong = 2;  ///< the profile is averaged over 2 * kAlong + 1 pixels along the edge
   explicit EdgeEvidence(const EdgeEvidenceParams& p = {}) : p_(p) {}
   [[nodiscard]] const EdgeEvidenceParams& params() const { return p_; }
   void set_params(const EdgeEvidenceParams& p) { p_ = p; }
