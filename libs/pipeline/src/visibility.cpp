@@ -72,6 +72,20 @@ void VisibilityTester::cache_face(const model::Model& model, const model::Face& 
   }
 }
 
+void VisibilityTester::add_cylinders(const model::Model& model, const geometry::SE3& T_cam_obj,
+                                     std::vector<CylinderCache>& out) {
+  for (const model::Cylinder& cy : model.cylinders()) {
+    CylinderCache c;
+    c.p1 = T_cam_obj * cy.p1;
+    const Eigen::Vector3d p2 = T_cam_obj * cy.p2;
+    c.length = (p2 - c.p1).norm();
+    if (c.length < 1e-9) continue;
+    c.axis = (p2 - c.p1) / c.length;
+    c.radius = cy.radius;
+    out.push_back(c);
+  }
+}
+
 void VisibilityTester::clear_occluders() {
   occluder_faces_.clear();
   occluder_poly_.clear();
@@ -90,16 +104,7 @@ void VisibilityTester::add_occluder(const model::Model& model, const geometry::S
     if (c.usable) occluder_faces_.push_back(c);
     else occluder_poly_.resize(c.first);
   }
-  for (const model::Cylinder& cy : model.cylinders()) {
-    CylinderCache c;
-    c.p1 = T_cam_obj * cy.p1;
-    const Eigen::Vector3d p2 = T_cam_obj * cy.p2;
-    c.length = (p2 - c.p1).norm();
-    if (c.length < 1e-9) continue;
-    c.axis = (p2 - c.p1) / c.length;
-    c.radius = cy.radius;
-    occluder_cylinders_.push_back(c);
-  }
+  add_cylinders(model, T_cam_obj, occluder_cylinders_);
 }
 
 bool VisibilityTester::hidden(const Eigen::Vector3d& p_cam, model::Index face_a, model::Index face_b) const {
@@ -146,16 +151,7 @@ void VisibilityTester::update(const model::Model& model, const geometry::SE3& T_
 
   cylinders_.clear();
   cylinders_.reserve(model.cylinders().size());  // allocates once per model size
-  for (const model::Cylinder& cy : model.cylinders()) {
-    CylinderCache c;
-    c.p1 = T_cam_obj * cy.p1;
-    const Eigen::Vector3d p2 = T_cam_obj * cy.p2;
-    c.length = (p2 - c.p1).norm();
-    if (c.length < 1e-9) continue;
-    c.axis = (p2 - c.p1) / c.length;
-    c.radius = cy.radius;
-    cylinders_.push_back(c);
-  }
+  add_cylinders(model, T_cam_obj, cylinders_);
   const int n = std::max(2, p_.samples);
   if (static_cast<int>(sample_ok_.size()) < n) sample_ok_.resize(n);
   const auto& lines = model.lines();

@@ -79,6 +79,8 @@ class VisibilityTester {
     double length = 0.0, radius = 0.0;
   };
   bool hidden_by_cylinder(const Eigen::Vector3d& p_cam) const;
+  /// Appends the model's cylinders at T_cam_obj (camera frame) to `out`.
+  static void add_cylinders(const model::Model& model, const geometry::SE3& T_cam_obj, std::vector<CylinderCache>& out);
   std::vector<FaceCache> faces_;
   std::vector<CylinderCache> cylinders_;
   std::vector<Eigen::Vector2d> poly_;
