@@ -9,7 +9,7 @@ Each run is scored with eval_poses.py (mean translation error, success 5 cm / 5 
 cycle_ms: the whole cycle over all cameras and objects).
 
 usage: scene_bench.py --v4r build/bin/v4r --bench /tmp/v4r-bench --eval ../shared/bench/eval_poses.py
-                      [--out /tmp/scene_bench] [--only stereo_box_regular,...]
+                      [--out /tmp/scene_bench] [--only stereo_box_regular,...] [--set cycle.joint_solve=false]
 Prints one line per run and a table at the end; the scene files are left in --out."""
 import argparse, glob, json, os, subprocess, sys
 
@@ -44,6 +44,8 @@ def write_scene(path, cameras, objects):
 
 def run(args, scene, outdir):
     cmd = [args.v4r, "track", "--scene", scene, "--output-dir", outdir, "--no-warnings"]
+    for kv in args.set:
+        cmd += ["--set", kv]
     r = subprocess.run(cmd, capture_output=True, text=True)
     if r.returncode not in (0, 3):
         sys.exit(f"failed: {' '.join(cmd)}\n{r.stderr}")
@@ -61,6 +63,7 @@ def main():
     ap.add_argument("--eval", required=True)
     ap.add_argument("--out", default="/tmp/scene_bench")
     ap.add_argument("--only", default="")
+    ap.add_argument("--set", action="append", default=[], help="a tracker parameter for every run, as v4r's --set (repeatable)")
     args = ap.parse_args()
     only = set(filter(None, args.only.split(",")))
     rows = []

@@ -67,7 +67,6 @@ TEST_F(ServeScene, SceneFileErrorsNameFileLineAndFieldAndFail) {
       {"inputs of unequal length", "cameras:\n" + cam_a + "  - name: b\n    calibration: camera.yaml\n    input: frames3\n" + obj,
        7, "cameras[1].input"},
       {"camera without input", "cameras:\n" + cam_a + "  - name: b\n    calibration: camera.yaml\n" + obj, 5, "cameras[1]"},
-      {"no init_pose", "cameras:\n" + cam_a + "objects:\n  - name: box\n    model: box.cao\n", 6, "objects[0]"},
   };
   const std::string path = (dir_ / "bad.yaml").string();
   for (const BadScene& c : cases) {

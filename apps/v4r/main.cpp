@@ -446,7 +446,8 @@ int main(int argc, char** argv) {
         sto.fps = to.fps;
         sto.overlay_dir = to.overlay;
         sto.quiet = to.quiet;
-        if (auto c = configure(sto.params, config_file, sets); !c) {
+        sto.cache_dir = to.cache_dir;
+        if (auto c = configure(sto.params, config_file, sets, &sto.detect, &sto.search); !c) {
           fmt::print(stderr, "v4r track: error: {}\n", c.error().to_string());
           return 1;
         }

@@ -9,6 +9,17 @@
 
 namespace v4r::app {
 
+int features_used(const scene::Object& o) {
+  int n = 0;
+  for (const scene::View& v : o.views) {
+    for (const scene::LineFeature& f : v.lines)
+      if (f.visible && !f.ambiguous && !f.dropped && f.status == scene::FeatureStatus::kFound) ++n;
+    for (const scene::ArcFeature& a : v.arcs)
+      if (a.visible && !a.dropped && a.status == scene::FeatureStatus::kFound) ++n;
+  }
+  return n;
+}
+
 void write_pose_csv_row(std::FILE* f, const PoseCsvRow& r) {
   const pipeline::ObjectReport& rep = *r.report;
   // A frame without a pose (`searching`) has its pose fields empty.

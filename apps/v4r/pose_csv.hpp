@@ -30,6 +30,11 @@ struct PoseCsvRow {
   const pipeline::ObjectReport* report = nullptr;
 };
 
+/// Edges and circles of one object that the pose solve kept (found, not rejected as outliers),
+/// over all its views: `features_used` as the protocol's SystemStatus and the overlay count it.
+/// The solver's observations are counted apart (lines_used, circle_points_used, junctions_used).
+int features_used(const scene::Object& o);
+
 /// Writes one row (the report must be set).
 void write_pose_csv_row(std::FILE* f, const PoseCsvRow& r);
 

@@ -27,14 +27,13 @@ Expected<SceneSetup> build_scene(const io::SceneFile& file, bool warnings) {
 Expected<void> set_start_poses(const io::SceneFile& file, scene::Scene& scene) {
   for (std::size_t i = 0; i < file.objects.size(); ++i) {
     const io::SceneObjectSpec& o = file.objects[i];
-    if (!o.init_pose)
-      return o.at.error(fmt::format(
-          "object '{}' has no init_pose: finding an object without a start pose is not supported yet; give "
-          "init_pose: [tx, ty, tz, rx, ry, rz] (T_ref_obj, m and rad)",
-          o.name));
     const long index = scene.find_object(o.name);
     if (index < 0) return o.at.error(fmt::format("object '{}' is not in the scene", o.name));
-    scene.set_pose(static_cast<std::size_t>(index), *o.init_pose);
+    if (o.init_pose) {
+      scene.set_pose(static_cast<std::size_t>(index), *o.init_pose);
+    } else {
+      scene.start_search(static_cast<std::size_t>(index));  // found by the search (issue 10)
+    }
   }
   return {};
 }

@@ -23,9 +23,8 @@ struct SceneSetup {
 /// (set_start_poses). `warnings`: run the plausibility check of the models' size.
 Expected<SceneSetup> build_scene(const io::SceneFile& file, bool warnings);
 
-/// Sets the start pose (T_ref_obj) of every object of `file` in `scene`. An object without
-/// `init_pose` would have to be found in the images first: that is not supported yet, and is an
-/// error naming the object's line. (The seam where searching will start such an object.)
+/// Sets the start pose (T_ref_obj) of every object of `file` in `scene`; an object without
+/// `init_pose` is `searching` (Scene::start_search): found in the images by the search.
 Expected<void> set_start_poses(const io::SceneFile& file, scene::Scene& scene);
 
 }  // namespace v4r::app

@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include <fmt/format.h>
@@ -18,6 +19,7 @@
 #include "progress.hpp"
 #include "scene_inputs.hpp"
 #include "scene_setup.hpp"
+#include "v4r/detection/template_cache.hpp"
 #include "v4r/geometry/se3_jacobians.hpp"
 #include "v4r/io/frame_source.hpp"
 #include "v4r/io/scene_file.hpp"
@@ -29,18 +31,6 @@ namespace v4r::app {
 namespace fs = std::filesystem;
 
 namespace {
-
-/// Edges and circles of one object that the pose solve kept, over all its views (as poses.csv).
-int object_features_used(const scene::Object& o) {
-  int n = 0;
-  for (const scene::View& v : o.views) {
-    for (const scene::LineFeature& f : v.lines)
-      if (f.visible && !f.ambiguous && !f.dropped && f.status == scene::FeatureStatus::kFound) ++n;
-    for (const scene::ArcFeature& a : v.arcs)
-      if (a.visible && !a.dropped && a.status == scene::FeatureStatus::kFound) ++n;
-  }
-  return n;
-}
 
 /// One pose CSV, closed when it goes.
 struct CsvFile {
@@ -135,6 +125,23 @@ Expected<SceneTrackSummary> run_scene_track(const SceneTrackOptions& opt) {
 
   const double fps = opt.fps > 0.0 ? opt.fps : 1.0 / opt.params.frame_interval_s;
   pipeline::VisionCycle cycle(opt.params);
+  // The search (issue 10), set up for an object when it first needs it: from frame 0 without
+  // init_pose, else when it is first lost (building templates takes seconds).
+  std::optional<pipeline::ObjectSearch> search;
+  std::vector<char> searchable(sc.objects().size(), 0);
+  const auto make_searchable = [&](std::size_t o) -> Expected<void> {
+    if (!search) search.emplace(opt.params, opt.search, opt.detect);
+    detection::CacheReport crep;
+    auto ts = detection::load_or_build(*sc.objects()[o].model, sc.cameras()[0].intrinsics, opt.detect, opt.cache_dir, &crep);
+    if (!ts) return ts.error();
+    if (crep.built && !opt.quiet)
+      fmt::print(stderr, "v4r track: built the detector's templates of '{}' ({}){}\n", sc.objects()[o].name, crep.reason,
+                 crep.written ? ", cached in " + crep.path : ", not cached: " + crep.write_error);
+    search->add_object(sc, o, *ts);
+    searchable[o] = 1;
+    return {};
+  };
+  std::vector<pipeline::ObjectReport> reports(sc.objects().size());
   std::vector<pipeline::CameraImage> images(file->cameras.size());
   const bool progress = opt.progress > 0 || (opt.progress < 0 && stderr_is_terminal());
   ProgressLine bar(progress && !opt.quiet, (*inputs)[0].source->size_hint());
@@ -176,8 +183,31 @@ Expected<SceneTrackSummary> run_scene_track(const SceneTrackOptions& opt) {
       s.warnings = warnings.size();
     }
     const double stamp = k / fps;
+    if (opt.search.enabled)
+      for (std::size_t o = 0; o < sc.objects().size(); ++o)
+        if (!searchable[o] && sc.objects()[o].status == scene::TrackStatus::kSearching)
+          if (auto e = make_searchable(o); !e) return e.error();
     const pipeline::CycleReport& rep = cycle.process(sc, images, stamp);
-    s.cycle_ms.push_back(rep.cycle_ms);
+    double cycle_ms = rep.cycle_ms;
+    for (std::size_t o = 0; o < sc.objects().size(); ++o) reports[o] = rep.objects[o];
+    if (opt.search.enabled) {
+      for (std::size_t o = 0; o < sc.objects().size(); ++o)
+        if (!searchable[o] && rep.objects[o].status == scene::TrackStatus::kLost)
+          if (auto e = make_searchable(o); !e) return e.error();
+      if (search) {
+        const auto found = search->update(sc, images, stamp);
+        for (std::size_t o = 0; o < found.size(); ++o) {
+          cycle_ms += found[o].search_ms;
+          const scene::Object& obj = sc.objects()[o];
+          if (found[o].locked) {  // found and confirmed on this frame: the pose of the search
+            reports[o].evidence = obj.evidence;
+            reports[o].quality = obj.quality;
+          }
+          reports[o].status = obj.status;
+        }
+      }
+    }
+    s.cycle_ms.push_back(cycle_ms);
     for (std::size_t o = 0; o < sc.objects().size(); ++o) {
       const scene::Object& obj = sc.objects()[o];
       PoseCsvRow row;
@@ -186,16 +216,17 @@ Expected<SceneTrackSummary> run_scene_track(const SceneTrackOptions& opt) {
       row.filtered = obj.T_ref_obj_filtered;
       row.velocity = obj.velocity;
       row.covariance = geometry::translation_rotation_covariance(obj.T_ref_obj, obj.covariance);
-      row.cycle_ms = rep.cycle_ms;
-      row.features_used = object_features_used(obj);
+      row.cycle_ms = cycle_ms;
+      row.features_used = features_used(obj);
       row.degrade_level = rep.degrade_level;
       row.stamp_s = stamp;
-      row.report = &rep.objects[o];
+      row.report = &reports[o];
       write_pose_csv_row(csv[o].f, row);
       SceneTrackSummary::ObjectSummary& os = s.objects[o];
       os.poses.push_back(obj.T_ref_obj);
-      if (rep.objects[o].status == scene::TrackStatus::kLost) ++os.lost;
-      if (rep.objects[o].status == scene::TrackStatus::kDegraded) ++os.degraded;
+      if (reports[o].status == scene::TrackStatus::kLost) ++os.lost;
+      if (reports[o].status == scene::TrackStatus::kDegraded) ++os.degraded;
+      if (reports[o].status == scene::TrackStatus::kSearching) ++os.searching;
     }
     if (!opt.overlay_dir.empty()) {
       for (std::size_t c = 0; c < inputs->size(); ++c) {
@@ -205,7 +236,7 @@ Expected<SceneTrackSummary> run_scene_track(const SceneTrackOptions& opt) {
         } else {
           cv::cvtColor(in.grey, vis, cv::COLOR_GRAY2BGR);
         }
-        viz::draw_overlay(vis, sc, cycle, c, rep);
+        viz::draw_overlay(vis, sc, cycle, c, rep);  // (the cycle's status: searching objects show none)
         const std::string f = (fs::path(opt.overlay_dir) / file->cameras[c].name / fmt::format("{:06d}.png", k)).string();
         if (!cv::imwrite(f, vis)) return make_error(f, 0, 0, "cannot write overlay image");
       }
@@ -234,10 +265,13 @@ int cmd_track_scene(const SceneTrackOptions& opt) {
   for (std::size_t o = 0; o < s->objects.size(); ++o) {
     const auto& os = s->objects[o];
     if (!opt.quiet)
-      fmt::print("{}: lost {}  degraded {}  -> {}\n", os.name, os.lost, os.degraded, s->csv_paths[o]);
-    if (os.lost == s->frames) {
-      fmt::print(stderr, "v4r track: error: object '{}' was lost on every frame ({} of {}){}\n", os.name, os.lost,
-                 s->frames, s->warnings > 0 ? "; see the warnings above" : "; check its init_pose, units and the cameras' T_ref_cam");
+      fmt::print("{}: lost {}  degraded {}  searching {}  -> {}\n", os.name, os.lost, os.degraded, os.searching,
+                 s->csv_paths[o]);
+    if (os.lost + os.searching == s->frames) {
+      fmt::print(stderr, "v4r track: error: object '{}' was {} on every frame ({} of {}){}\n", os.name,
+                 os.searching > 0 ? "lost or searched" : "lost", os.lost + os.searching, s->frames,
+                 s->warnings > 0 ? "; see the warnings above"
+                                 : "; check its init_pose, units, the cameras' T_ref_cam and the view range (detect.views.*)");
       all_lost = true;
     }
   }

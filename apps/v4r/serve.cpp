@@ -47,7 +47,7 @@ struct ServeArgs {
 };
 
 /// `--scene S.yaml`: the scene file's cameras with their inputs, its reference frame and its
-/// objects (each with its init_pose: finding an object without one is not supported yet).
+/// objects (an object without init_pose is searched for, as one added without SetPose).
 Expected<server::ServeScene> load_serve_scene(const std::string& path) {
   auto file = io::load_scene_file(path);
   if (!file) return file.error();
@@ -65,7 +65,7 @@ Expected<server::ServeScene> load_serve_scene(const std::string& path) {
   sc.inputs = std::move(*inputs);
   sc.reference_frame = file->reference_frame;
   for (const scene::Object& o : setup->scene.objects())
-    sc.objects.push_back(server::StartObject{o.name, o.model, o.T_ref_obj});
+    sc.objects.push_back(server::StartObject{o.name, o.model, o.T_ref_obj, o.status != scene::TrackStatus::kSearching});
   return sc;
 }
 

@@ -62,21 +62,6 @@ class OverlayWriter {
   cv::VideoWriter video_;
 };
 
-/// Edges and circles the pose solve kept (found, not rejected as outliers): `features_used` as the
-/// protocol's SystemStatus and the overlay count it. The solver's observations are counted apart
-/// (lines_used, circle_points_used, junctions_used).
-int features_used(const scene::Scene& scene) {
-  int n = 0;
-  for (const scene::Object& o : scene.objects())
-    for (const scene::View& v : o.views) {
-      for (const scene::LineFeature& f : v.lines)
-        if (f.visible && !f.ambiguous && !f.dropped && f.status == scene::FeatureStatus::kFound) ++n;
-      for (const scene::ArcFeature& a : v.arcs)
-        if (a.visible && !a.dropped && a.status == scene::FeatureStatus::kFound) ++n;
-    }
-  return n;
-}
-
 /// How frames are stamped: the text says where the times come from.
 struct Timing {
   double fps = 0.0;  ///< frames per second, or 0 for file or capture times
@@ -236,7 +221,7 @@ Expected<TrackSummary> run_track(const TrackOptions& opt) {
       row.velocity = r.velocity;
       row.covariance = r.covariance;
       row.cycle_ms = r.cycle_ms;
-      row.features_used = features_used(tracker->scene());
+      row.features_used = features_used(tracker->scene().objects()[0]);
       row.degrade_level = r.degrade_level;
       row.stamp_s = stamp;
       row.report = &r.report;

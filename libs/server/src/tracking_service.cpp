@@ -79,10 +79,10 @@ TrackingService::TrackingService(ServiceOptions opt, std::vector<std::unique_ptr
   greys_.resize(opt_.cameras.size());
   camera_frames_.assign(opt_.cameras.size(), 0);
   camera_alive_.assign(opt_.cameras.size(), 1);
-  add_start_objects();
   paused_ = opt_.paused;
   if (opt_.search.enabled)
     search_ = std::make_unique<ServiceSearch>(params_, opt_.search, opt_.detect, opt_.camera, opt_.cache_dir);
+  add_start_objects();  // after the search: a start object without a pose is searched for
   if (opt_.object_hook) cycle_.set_object_hook([hook = opt_.object_hook](const scene::Object& o) { hook(o.name); });
 }
 
@@ -137,7 +137,7 @@ void TrackingService::add_start_objects() {
   for (const StartObject& so : opt_.objects) {
     ObjectEntry e;
     e.name = so.name;
-    e.has_pose = true;
+    e.has_pose = so.has_pose;
     e.pose = so.T_ref_obj;
     objects_.push_back(std::move(e));
     (void)set_model(objects_.back(), so.model, "AddModel");

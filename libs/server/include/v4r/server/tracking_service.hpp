@@ -38,6 +38,7 @@ struct StartObject {
   std::string name;
   std::shared_ptr<const model::Model> model;
   geometry::SE3 T_ref_obj;  ///< its start pose in the reference frame
+  bool has_pose = true;     ///< false: no start pose, the object is searched for (as without SetPose)
 };
 
 /// \brief Set-up of the tracking thread.
@@ -48,7 +49,7 @@ struct ServiceOptions {
   std::vector<scene::Camera> cameras;
   /// Non-empty (with `cameras`): ObjectPose names it (`ref=`), SystemStatus reports per camera.
   std::string reference_frame;
-  std::vector<StartObject> objects;  ///< tracked from the first frame (AddObject + AddModel + SetPose)
+  std::vector<StartObject> objects;  ///< tracked from the first frame (AddObject + AddModel + SetPose if it has a pose)
   double fps = 30.0;               ///< frames per second the input is played at; <= 0: as fast as processed
   bool paused = false;             ///< hold at frame 0 until Start
   pipeline::CycleParams params;    ///< initial tracker parameters
