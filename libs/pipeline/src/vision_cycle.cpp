@@ -2,6 +2,7 @@
 #include "v4r/pipeline/vision_cycle.hpp"
 
 #include <algorithm>
+#include <cmath>
 
 #include "v4r/pipeline/object_update.hpp"
 #include "v4r/pipeline/view_evidence.hpp"
@@ -85,6 +86,29 @@ void VisionCycle::predict_object(scene::Object& obj, ObjectReport& rep, double s
   if (p_.use_filter && obj.filter.initialised()) obj.covariance_pred = obj.filter.pose_covariance();
 }
 
+namespace {
+
+/// Radius of an origin-centred sphere that holds the whole model (junctions, arcs, cylinders).
+double enclosing_radius(const model::Model& m) {
+  double r = m.bounding_radius();
+  for (const model::Cylinder& c : m.cylinders()) r = std::max(r, std::max(c.p1.norm(), c.p2.norm()) + c.radius);
+  return r;
+}
+
+/// Whether an object (sphere of radius r_occ round the origin of T_cam_occ) may hide part of
+/// another (r_obj round T_cam_obj's origin) in the camera: not wholly behind it, and their
+/// spheres' image discs (angular radii, seen from the camera centre) overlap.
+bool may_occlude(const geometry::SE3& T_cam_occ, double r_occ, const geometry::SE3& T_cam_obj, double r_obj) {
+  const Eigen::Vector3d a = T_cam_occ.translation(), b = T_cam_obj.translation();
+  if (a.z() - r_occ > b.z() + r_obj) return false;  // wholly behind
+  const double da = a.norm(), db = b.norm();
+  if (da <= r_occ || db <= r_obj) return true;  // the camera inside a sphere: keep it
+  const double cos_between = std::clamp(a.dot(b) / (da * db), -1.0, 1.0);
+  return std::acos(cos_between) <= std::asin(r_occ / da) + std::asin(r_obj / db);
+}
+
+}  // namespace
+
 void VisionCycle::predict_views(scene::Scene& scene, std::span<const CameraImage> images) {
   auto objects = scene.objects();
   const auto tracked = [&](std::size_t oi) {
@@ -98,10 +122,17 @@ void VisionCycle::predict_views(scene::Scene& scene, std::span<const CameraImage
       if (!tracked(oi)) continue;
       scene::Object& obj = objects[oi];
       try {
-        // The other objects at their predictions hide what is behind them (paper 2.1: the scene).
+        // The other objects at their predictions hide what is behind them (paper 2.1: the scene);
+        // only those whose bounding sphere can cover this one's in the image and is not wholly
+        // behind it are tested (objects side by side cost nothing).
         predictor_.clear_occluders();
-        for (std::size_t oj = 0; oj < objects.size(); ++oj)
-          if (oj != oi && tracked(oj)) predictor_.add_occluder(*objects[oj].model, T_cam_ref * objects[oj].T_pred);
+        const geometry::SE3 T_cam_obj = T_cam_ref * obj.T_pred;
+        for (std::size_t oj = 0; oj < objects.size(); ++oj) {
+          if (oj == oi || !tracked(oj)) continue;
+          const geometry::SE3 T_cam_occ = T_cam_ref * objects[oj].T_pred;
+          if (may_occlude(T_cam_occ, enclosing_radius(*objects[oj].model), T_cam_obj, enclosing_radius(*obj.model)))
+            predictor_.add_occluder(*objects[oj].model, T_cam_occ);
+        }
         for (scene::View& view : obj.views)
           if (view.camera == c) predictor_.predict(obj, view, cam);
       } catch (const std::exception& e) {
