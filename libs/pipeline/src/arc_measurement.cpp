@@ -36,9 +36,7 @@ int ArcMeasurement::track(const model::Model& model, scene::View& view, const sc
     scene::ArcFeature& a = view.arcs[ai];
     if (!a.visible || a.dropped) continue;
     // Back-off as for lines (their indices continue after the view's lines).
-    if (ctx.first_pass && ctx.search_level == 0 && p_.search_backoff_frames > 0 &&
-        a.frames_missing >= p_.search_backoff_frames &&
-        (ctx.frame + static_cast<std::int64_t>(view.lines.size() + ai)) % std::max(1, p_.search_backoff_period) != 0) {
+    if (ctx.backing_off(a.frames_missing, view.lines.size() + ai, p_.search_backoff_frames, p_.search_backoff_period)) {
       a.measurement = features::EllipseMeasurement{};
       a.retrack = false;
       a.edges = 0;

@@ -70,9 +70,7 @@ int LineMeasurement::track(scene::View& view, const scene::Camera& cam, const Ca
     if (!f.visible || f.ambiguous || f.dropped) continue;
     // Back-off (see CycleParams::search_backoff_frames): long-missed features wait their turn,
     // spread over the frames by their index.
-    if (ctx.first_pass && ctx.search_level == 0 && p.search_backoff_frames > 0 &&
-        f.frames_missing >= p.search_backoff_frames &&
-        (ctx.frame + static_cast<std::int64_t>(fi)) % std::max(1, p.search_backoff_period) != 0) {
+    if (ctx.backing_off(f.frames_missing, fi, p.search_backoff_frames, p.search_backoff_period)) {
       f.measurement = features::LineMeasurement{};
       f.retrack = false;
       continue;
