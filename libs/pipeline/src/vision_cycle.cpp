@@ -313,7 +313,7 @@ const CycleReport& VisionCycle::process(scene::Scene& scene, std::span<const Cam
   report_.visibility_ms = report_.track_ms = report_.solve_ms = 0.0;
   report_.windows = 0;
   ctx_ = MeasureContext{};
-  ctx_.frame = frame_++;
+  ctx_.frame = ++frame_;  // (the back-off phase: frames counted from 1)
   for (auto& e : edgels_) e.clear();
   auto objects = scene.objects();
 
