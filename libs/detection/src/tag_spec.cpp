@@ -52,6 +52,7 @@ Expected<TagSpec> parse_tag_spec(std::string_view text, const std::string& sourc
   }
   f[n++] = trim(rest);
   constexpr std::array<const char*, 4> kFields{"family", "id", "size_m", "pose"};
+  if (f[0].empty()) return field_error(source, "family", "missing");
   if (n < 4) return field_error(source, kFields[n], "missing");
   if (f[3].find(':') != std::string_view::npos) return field_error(source, "pose", "holds a ':' (only four fields)");
   TagSpec s;

@@ -111,7 +111,9 @@ TagObservation TagStart::detect(const image::ImageView& grey) {
     o.found = true;
     o.hamming = best->hamming;
     o.margin = best->decision_margin;
-    for (int k = 0; k < 4; ++k) o.corners_px[static_cast<std::size_t>(k)] = Eigen::Vector2d(best->p[k][0], best->p[k][1]);
+    // libapriltag puts pixel centres at +0.5 (pixel (0,0) covers [0,1]^2); v4r at integers.
+    for (int k = 0; k < 4; ++k)
+      o.corners_px[static_cast<std::size_t>(k)] = Eigen::Vector2d(best->p[k][0] - 0.5, best->p[k][1] - 0.5);
   }
   apriltag_detections_destroy(dets);
   if (!o.found) return o;
