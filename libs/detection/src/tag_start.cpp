@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <vector>
 
 #include <apriltag/apriltag.h>
@@ -59,6 +60,8 @@ void add_tag_params(ParamRegistry& r, TagParams& p, const std::string& prefix) {
   r.add(prefix + ".max_hamming", &p.max_hamming, 0, 2, "bits", "with --tag: bit errors corrected when decoding a tag");
   r.add(prefix + ".min_margin", &p.min_margin, 0.0, 255.0, "grey",
         "with --tag: decision margin (bit contrast) a detected tag needs");
+  r.add(prefix + ".max_offset", &p.max_offset_px, 0.0, 10000.0, "px",
+        "with --tag: while the tag is seen, a found pose must put its corners this close to the seen ones");
 }
 
 Expected<std::unique_ptr<TagStart>> TagStart::create(const TagSpec& spec, const geometry::PinholeCamera& cam,
@@ -91,6 +94,22 @@ TagStart::~TagStart() {
   if (detector_) apriltag_detector_destroy(detector_);
   if (family_)
     if (const FamilyFns* f = find_family(spec_.family)) f->destroy(family_);
+}
+
+double TagStart::corner_offset_px(const TagObservation& o, const geometry::SE3& T_cam_obj) const {
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  if (!o.found) return kInf;
+  const geometry::SE3 T_cam_tag = T_cam_obj * spec_.T_obj_tag;
+  if (!(T_cam_tag.rotation().col(2).dot(T_cam_tag.translation()) > 0.0)) return kInf;  // its back faces the camera
+  const double h = 0.5 * spec_.size_m;
+  const double xs[4] = {-h, h, h, -h}, ys[4] = {h, h, -h, -h};  // libapriltag's corner order (see detect)
+  double worst = 0.0;
+  for (std::size_t k = 0; k < 4; ++k) {
+    const Eigen::Vector3d p = T_cam_tag * Eigen::Vector3d(xs[k], ys[k], 0.0);
+    if (!(p.z() > 1e-6)) return kInf;
+    worst = std::max(worst, (cam_.project(p) - o.corners_px[k]).norm());
+  }
+  return worst;
 }
 
 TagObservation TagStart::detect(const image::ImageView& grey) {

@@ -86,13 +86,13 @@ inline void paint_tag(cv::Mat& img, const TagBitmap& b, double size_m, const geo
       for (int x = 0; x < img.cols; ++x) {
         const float a = alpha.at<float>(y, x);
         if (a <= 0.0f) continue;
-        const float v = warped.at<std::uint8_t>(y, x);
+        const float v = warped.at<std::uint8_t>(y, x);  // already a * value at the edge (border 0)
         if (img.channels() == 3) {
           cv::Vec3b& p = img.at<cv::Vec3b>(y, x);
-          for (int c = 0; c < 3; ++c) p[c] = cv::saturate_cast<std::uint8_t>(p[c] * (1.0f - a) + v * a);
+          for (int c = 0; c < 3; ++c) p[c] = cv::saturate_cast<std::uint8_t>(p[c] * (1.0f - a) + v);
         } else {
           std::uint8_t& p = img.at<std::uint8_t>(y, x);
-          p = cv::saturate_cast<std::uint8_t>(p * (1.0f - a) + v * a);
+          p = cv::saturate_cast<std::uint8_t>(p * (1.0f - a) + v);
         }
       }
   };

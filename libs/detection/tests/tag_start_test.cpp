@@ -139,6 +139,12 @@ TEST(TagStart, OneOfTheTwoPosesIsTheTruePose) {
       if (et + er * 1e-3 < best_t + best_r * 1e-3) best_t = et, best_r = er;
     }
     EXPECT_LT(o.rms_px[0], 1.0) << "case " << i;  // the better corner fit
+    // The true pose explains the seen tag; 2 cm to the side, or turned to show its back, does not.
+    EXPECT_LT((*tag)->corner_offset_px(o, T_cam_obj), 1.5) << "case " << i;
+    const geometry::SE3 aside(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.02, 0.0, 0.0));
+    EXPECT_GT((*tag)->corner_offset_px(o, aside * T_cam_obj), 10.0) << "case " << i;
+    const geometry::SE3 flip = geometry::SE3::from_rvec(Eigen::Vector3d::Zero(), Eigen::Vector3d(0.0, kPi, 0.0));
+    EXPECT_TRUE(std::isinf((*tag)->corner_offset_px(o, T_cam_tag * flip * spec.T_obj_tag.inverse()))) << "case " << i;
     worst_t = std::max(worst_t, best_t);
     worst_r = std::max(worst_r, best_r);
   }

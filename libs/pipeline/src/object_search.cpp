@@ -137,9 +137,15 @@ void ObjectSearch::search(scene::Scene& scene, std::size_t object, const CameraI
   ++s.search_frames;
   double best = -1.0, best_evidence = 0.0;
   geometry::SE3 T_best;
+  // The object's tag, if given and seen: a pose of the object must put it where it is seen.
+  const detection::TagObservation tag = s.tag ? s.tag->detect(img.grey) : detection::TagObservation{};
   const auto consider = [&](geometry::SE3 T) {
     ++rep.tried;
-    const double e = refine(object, img, stamp_s, T);
+    double e = refine(object, img, stamp_s, T);
+    if (e >= 0.0 && tag.found && s.tag->corner_offset_px(tag, T) > p_.tag.max_offset_px) {
+      e = -1.0;
+      ++rep.tag_vetoed;
+    }
     if (e > best) {
       best = e;
       best_evidence = last_evidence_;
@@ -173,12 +179,9 @@ void ObjectSearch::search(scene::Scene& scene, std::size_t object, const CameraI
   // (2) The AprilTag on the object, if given: both poses of the square. One accepted makes the
   // restarts and the whole-image detector unnecessary on this frame.
   bool tag_accepted = false;
-  if (s.tag) {
-    const detection::TagObservation t = s.tag->detect(img.grey);
-    for (int k = 0; k < t.poses; ++k) {
-      ++rep.tag_poses;
-      if (consider(t.T_cam_obj[static_cast<std::size_t>(k)]) >= 0.0) tag_accepted = true;
-    }
+  for (int k = 0; k < tag.poses; ++k) {
+    ++rep.tag_poses;
+    if (consider(tag.T_cam_obj[static_cast<std::size_t>(k)]) >= 0.0) tag_accepted = true;
   }
   // (3) Perturbed restarts around the last pose (first search frames after a loss).
   if (!tag_accepted && s.have_last && s.search_frames <= p_.local_frames) {

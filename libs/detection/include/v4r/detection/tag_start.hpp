@@ -24,6 +24,9 @@ struct TagParams {
   double blur_px = 0.0;    ///< Gaussian blur (sigma, px) before finding quads (0: none; 0.8 for noisy images)
   int max_hamming = 1;     ///< bit errors corrected when decoding (0..2; more: more false tags)
   double min_margin = 15.0;  ///< libapriltag's decision margin a detection needs (grey levels of the bit contrast)
+  /// Pixels: while the tag is seen, an object pose is accepted only if it puts the tag's corners
+  /// within this distance of the seen ones (TagStart::corner_offset_px).
+  double max_offset_px = 10.0;
 };
 
 /// Registers every TagParams field under `prefix` (e.g. "search.tag") with unit and range.
@@ -66,6 +69,11 @@ class TagStart {
   /// Looks for the tag in an 8-bit grey image of the camera's size (another size: not found).
   /// Tags of other ids or families are ignored; of several with the spec's id, the clearest.
   TagObservation detect(const image::ImageView& grey);
+
+  /// How far pose T_cam_obj puts the tag from where `o` saw it: the largest distance between a
+  /// projected tag corner and the seen one, pixels; infinite when that pose shows the tag's back
+  /// or puts a corner behind the camera. A pose of the object must explain a tag seen on it.
+  [[nodiscard]] double corner_offset_px(const TagObservation& o, const geometry::SE3& T_cam_obj) const;
 
   [[nodiscard]] const TagSpec& spec() const { return spec_; }
 

@@ -54,6 +54,7 @@ struct SearchReport {
   double search_ms = 0.0;    ///< time of this object's search
   double detect_ms = 0.0;    ///< of which the detector's whole-image search
   int tag_poses = 0;         ///< poses of the object's AprilTag refined (0: no tag set, or not seen)
+  int tag_vetoed = 0;        ///< refined poses refused because they put the seen tag elsewhere
 };
 
 /// \brief Finds objects that have no pose (kSearching) and hands them back to the vision cycle.
@@ -83,8 +84,9 @@ class ObjectSearch {
   /// Gives a searchable object (add_object first) an AprilTag fixed on it: while the object is
   /// searched, both poses of the tag (detection::TagStart) are refined and tested like the
   /// detector's hypotheses, before them; when one is accepted, the restarts and the detector are
-  /// skipped on that frame. Once found, the object is tracked without the tag. Tag detection
-  /// allocates (libapriltag): only on search frames.
+  /// skipped on that frame. While the tag is seen, any pose (a candidate's, a restart's, the
+  /// detector's) must also put the tag where it is seen (search.tag.max_offset). Once found, the
+  /// object is tracked without the tag. Tag detection allocates (libapriltag): search frames only.
   void set_tag_start(std::size_t object, std::unique_ptr<detection::TagStart> tag);
 
   /// Runs the search for this frame (see the class comment); `images` as given to the cycle.
