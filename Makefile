@@ -2,7 +2,8 @@
 BUILD ?= build
 JOBS ?= $(shell nproc)
 DEB_PACKAGES := build-essential cmake ninja-build pkg-config libeigen3-dev libopencv-dev libasio-dev \
-	libcli11-dev libspdlog-dev libfmt-dev libyaml-cpp-dev libgtest-dev libgmock-dev libbenchmark-dev libassimp-dev
+	libcli11-dev libspdlog-dev libfmt-dev libyaml-cpp-dev libgtest-dev libgmock-dev libbenchmark-dev libassimp-dev \
+	libapriltag-dev
 # Only for `make test`: headless Chromium checks the monitoring page of `v4r serve`; ViSP's images
 # (real cube sequence, .cao models) for tests/visp_cube_test.cpp; python3 runs the README commands
 # and the protocol units test; GStreamer's base and good plugins (videotestsrc, multifilesrc, pngdec)

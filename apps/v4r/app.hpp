@@ -29,6 +29,7 @@ struct TrackOptions {
   std::string model_path, camera_path, input, output_csv, overlay, gt_csv;
   std::optional<io::PoseNumbers> init_pose;  ///< --init-pose as given
   std::string init_pose_file;
+  std::optional<detection::TagSpec> tag;  ///< --tag: an AprilTag on the object for the search
   pipeline::CycleParams params;
   detection::DetectorParams detect;    ///< detect.*: the search's templates and detector
   pipeline::ObjectSearchParams search;  ///< search.*: when and how the object is searched for

@@ -25,6 +25,7 @@
 #include "v4r/io/camera_io.hpp"
 #include "v4r/io/config_io.hpp"
 #include "v4r/detection/detector_params.hpp"
+#include "v4r/detection/tag_spec.hpp"
 #include "v4r/pipeline/params.hpp"
 #include "v4r/io/frame_source.hpp"
 #include "v4r/io/pose_io.hpp"
@@ -299,7 +300,7 @@ void add_scene_track_options(CLI::App* track, app::SceneTrackOptions& o) {
 std::string check_track_usage(CLI::App* track) {
   const auto given = [track](const char* name) { return track->get_option(name)->count() > 0; };
   if (given("--scene")) {
-    for (const char* o : {"--model", "--camera", "--input", "--init-pose", "--init-pose-file", "--output", "--gt"})
+    for (const char* o : {"--model", "--camera", "--input", "--init-pose", "--init-pose-file", "--output", "--gt", "--tag"})
       if (given(o)) return fmt::format("{} cannot be combined with --scene (the scene file describes it)", o);
     if (!given("--output-dir")) return "--scene needs --output-dir D (one D/<object>.csv per object)";
     return {};
@@ -341,6 +342,12 @@ int main(int argc, char** argv) {
     auto* ipf = track->add_option("--init-pose-file", to.init_pose_file, "File with 'tx ty tz rx ry rz' (T_cam_obj)");
     auto* ip = track->add_option("--init-pose", init_pose_str, "Initial T_cam_obj: \"tx ty tz rx ry rz\" (m, rad)");
     ipf->excludes(ip);
+    std::string tag_str;
+    track->add_option("--tag", tag_str,
+                      "An AprilTag on the object to start from: family:id:size_m:\"tx ty tz rx ry rz\" (e.g. "
+                      "tag36h11:0:0.08:\"0 0 0.05 3.1416 0 0\"): size_m = edge of the tag's black square (m); the pose "
+                      "is T_obj_tag (m, rad), tag frame x right, y down as printed, z into the surface. Used while the "
+                      "object is searched; tracking itself is markerless");
     track->add_option("--output,--out", to.output_csv, "Pose CSV to write");
     app::SceneTrackOptions sto;
     add_scene_track_options(track, sto);
@@ -482,6 +489,14 @@ int main(int argc, char** argv) {
           return 1;
         }
         return app::cmd_track_scene(sto);
+      }
+      if (track->get_option("--tag")->count() > 0) {
+        auto t = detection::parse_tag_spec(tag_str, "--tag");
+        if (!t) {
+          fmt::print(stderr, "v4r track: error: {}\n", t.error().to_string());
+          return 1;
+        }
+        to.tag = *t;
       }
       if (!init_pose_str.empty()) {
         auto p = io::parse_pose_numbers(init_pose_str, "--init-pose");

@@ -13,6 +13,7 @@
 #include "plausibility.hpp"
 #include "pose_csv.hpp"
 #include "progress.hpp"
+#include "v4r/detection/tag_start.hpp"
 #include "v4r/detection/template_cache.hpp"
 #include "v4r/io/camera_io.hpp"
 #include "v4r/io/frame_source.hpp"
@@ -89,6 +90,15 @@ Expected<void> enable_search(pipeline::SingleObjectTracker& tracker, const Track
     fmt::print(stderr, "v4r track: built the detector's templates ({}){}\n", rep.reason,
                rep.written ? ", cached in " + rep.path : ", not cached: " + rep.write_error);
   tracker.enable_search(*ts, opt.search, opt.detect);
+  if (opt.tag) {
+    auto tag = detection::TagStart::create(*opt.tag, cam, opt.search.tag);
+    if (!tag) {
+      Error e = tag.error();
+      e.message = "--tag: " + e.message;
+      return Unexpected{std::move(e)};
+    }
+    tracker.set_tag_start(std::move(*tag));
+  }
   return {};
 }
 
@@ -99,6 +109,7 @@ Expected<TrackSummary> run_track(const TrackOptions& opt) {
   if (!model) return model.error();
   auto cam = io::load_camera(opt.camera_path, io::CameraFileOptions{.size_optional = true});
   if (!cam) return cam.error();
+  if (opt.tag && !opt.search.enabled) return make_error("--tag is used by the search, and search.enabled is false");
   io::PoseNumbers numbers{};
   std::string pose_source;
   if (opt.init_pose) {

@@ -40,6 +40,7 @@ void add_search_params(ParamRegistry& r, ObjectSearchParams& p) {
   r.add("search.confirm_translation", &p.confirm_translation_m, 0.0, 10.0, "m",
         "a found pose is confirmed when the next frame finds it again this close");
   r.add("search.confirm_rotation", &p.confirm_rotation_deg, 0.0, 180.0, "deg", "... and within this angle");
+  detection::add_tag_params(r, p.tag, "search.tag");
 }
 
 ObjectSearch::ObjectSearch(const CycleParams& cycle, const ObjectSearchParams& p, const detection::DetectorParams& dp)
@@ -75,6 +76,10 @@ void ObjectSearch::add_object(const scene::Scene& scene, std::size_t object,
   s.active = true;
   // Allocate the probe cycle's buffers now (a cycle on an empty image set allocates them).
   probe_.process(probe_scene_, {}, 0.0);
+}
+
+void ObjectSearch::set_tag_start(std::size_t object, std::unique_ptr<detection::TagStart> tag) {
+  if (object < slots_.size() && slots_[object].active) slots_[object].tag = std::move(tag);
 }
 
 bool ObjectSearch::in_view_range(const Slot& s, const geometry::SE3& T) const {
@@ -132,9 +137,15 @@ void ObjectSearch::search(scene::Scene& scene, std::size_t object, const CameraI
   ++s.search_frames;
   double best = -1.0, best_evidence = 0.0;
   geometry::SE3 T_best;
+  // The object's tag, if given and seen: a pose of the object must put it where it is seen.
+  const detection::TagObservation tag = s.tag ? s.tag->detect(img.grey) : detection::TagObservation{};
   const auto consider = [&](geometry::SE3 T) {
     ++rep.tried;
-    const double e = refine(object, img, stamp_s, T);
+    double e = refine(object, img, stamp_s, T);
+    if (e >= 0.0 && tag.found && s.tag->corner_offset_px(tag, T) > p_.tag.max_offset_px) {
+      e = -1.0;
+      ++rep.tag_vetoed;
+    }
     if (e > best) {
       best = e;
       best_evidence = last_evidence_;
@@ -165,8 +176,15 @@ void ObjectSearch::search(scene::Scene& scene, std::size_t object, const CameraI
       return;
     }
   }
-  // (2) Perturbed restarts around the last pose (first search frames after a loss).
-  if (s.have_last && s.search_frames <= p_.local_frames) {
+  // (2) The AprilTag on the object, if given: both poses of the square. One accepted makes the
+  // restarts and the whole-image detector unnecessary on this frame.
+  bool tag_accepted = false;
+  for (int k = 0; k < tag.poses; ++k) {
+    ++rep.tag_poses;
+    if (consider(tag.T_cam_obj[static_cast<std::size_t>(k)]) >= 0.0) tag_accepted = true;
+  }
+  // (3) Perturbed restarts around the last pose (first search frames after a loss).
+  if (!tag_accepted && s.have_last && s.search_frames <= p_.local_frames) {
     const double d = p_.restart_shift * s.radius;
     const Eigen::Vector3d shifts[] = {{0, 0, 0}, {d, 0, 0}, {-d, 0, 0}, {0, d, 0}, {0, -d, 0}, {d, d, 0}, {-d, -d, 0},
                                       {d, -d, 0}, {-d, d, 0}};
@@ -174,14 +192,16 @@ void ObjectSearch::search(scene::Scene& scene, std::size_t object, const CameraI
     for (int k = 0; k < n; ++k)
       consider(geometry::SE3(Eigen::Quaterniond::Identity(), shifts[k]) * s.T_last);
   }
-  // (3) The detector over the whole image.
-  const auto td = Clock::now();
-  const detection::DetectionResult r =
-      img.colour.empty() ? s.detector->detect(img.grey, hyp_) : s.detector->detect(img.colour, hyp_);
-  rep.detect_ms = ms_between(td, Clock::now());
-  if (r.status == detection::DetectionResult::Status::kOk) {
-    const int n = std::min<int>(r.hypotheses, std::min<int>(p_.hypotheses, static_cast<int>(hyp_.size())));
-    for (int k = 0; k < n; ++k) consider(hyp_[static_cast<std::size_t>(k)].T_cam_obj);
+  // (4) The detector over the whole image.
+  if (!tag_accepted) {
+    const auto td = Clock::now();
+    const detection::DetectionResult r =
+        img.colour.empty() ? s.detector->detect(img.grey, hyp_) : s.detector->detect(img.colour, hyp_);
+    rep.detect_ms = ms_between(td, Clock::now());
+    if (r.status == detection::DetectionResult::Status::kOk) {
+      const int n = std::min<int>(r.hypotheses, std::min<int>(p_.hypotheses, static_cast<int>(hyp_.size())));
+      for (int k = 0; k < n; ++k) consider(hyp_[static_cast<std::size_t>(k)].T_cam_obj);
+    }
   }
   rep.best_evidence = best >= 0.0 ? best_evidence : 0.0;
   s.have_candidate = best >= 0.0;

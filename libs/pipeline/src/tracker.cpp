@@ -23,6 +23,10 @@ void SingleObjectTracker::enable_search(std::shared_ptr<const detection::Templat
   search_->add_object(scene_, 0, std::move(templates));
 }
 
+void SingleObjectTracker::set_tag_start(std::unique_ptr<detection::TagStart> tag) {
+  if (search_) search_->set_tag_start(0, std::move(tag));
+}
+
 void SingleObjectTracker::start_search() {
   if (!scene_.objects().empty()) scene_.start_search(0);
 }

@@ -8,6 +8,7 @@
 
 #include "v4r/core/params.hpp"
 #include "v4r/detection/detector.hpp"
+#include "v4r/detection/tag_start.hpp"
 #include "v4r/pipeline/vision_cycle.hpp"
 #include "v4r/scene/scene.hpp"
 
@@ -35,6 +36,7 @@ struct ObjectSearchParams {
   /// within these limits (consistency over 2 frames).
   double confirm_translation_m = 0.03;
   double confirm_rotation_deg = 10.0;
+  detection::TagParams tag;  ///< search.tag.*: the optional AprilTag start (set_tag_start)
 };
 
 /// Registers every ObjectSearchParams field under `search.*` (units and ranges); `p` must
@@ -51,22 +53,25 @@ struct SearchReport {
   double best_evidence = 0;  ///< edge evidence of the best refined hypothesis
   double search_ms = 0.0;    ///< time of this object's search
   double detect_ms = 0.0;    ///< of which the detector's whole-image search
+  int tag_poses = 0;         ///< poses of the object's AprilTag refined (0: no tag set, or not seen)
+  int tag_vetoed = 0;        ///< refined poses refused because they put the seen tag elsewhere
 };
 
 /// \brief Finds objects that have no pose (kSearching) and hands them back to the vision cycle.
 ///
 /// Per frame, after VisionCycle::process: an object reported `lost` for lost_frames frames in a
 /// row turns to `searching`. A searching object is looked for on camera 0: (1) the candidate of
-/// the last frame, if any, tracked on this frame; (2) on the first local_frames search frames,
-/// perturbed restarts around the last pose; (3) the detector's best hypotheses over the whole
-/// image (detection::Detector). Every hypothesis is refined by the tracker itself (a private
+/// the last frame, if any, tracked on this frame; (2) with set_tag_start, both poses of the
+/// object's AprilTag; unless one of them was accepted: (3) on the first local_frames search
+/// frames, perturbed restarts around the last pose; (4) the detector's best hypotheses over the
+/// whole image (detection::Detector). Every hypothesis is refined by the tracker itself (a private
 /// VisionCycle run refine_cycles times on it: features not found yet are searched in the wide
 /// window, then tracked in the normal one) and accepted by the cycle's own status test: the
 /// share of the whole projected model's edge samples that the image confirms
 /// (features::EdgeEvidence; the detector's own verification score is not used). An accepted
 /// pose confirmed on the next frame (consistency over 2 frames) is set on the scene object,
-/// which is `tracking` from then on. Set-up allocates; update() allocates nothing and throws
-/// nothing. Not thread-safe.
+/// which is `tracking` from then on. Set-up allocates; update() throws nothing and allocates
+/// nothing, except in the tag detection of (2) (libapriltag, on search frames only). Not thread-safe.
 class ObjectSearch {
  public:
   ObjectSearch(const CycleParams& cycle, const ObjectSearchParams& p, const detection::DetectorParams& dp);
@@ -75,6 +80,14 @@ class ObjectSearch {
   /// scene (built by detection::load_or_build for that camera and `dp`). Allocates.
   void add_object(const scene::Scene& scene, std::size_t object,
                   std::shared_ptr<const detection::TemplateSet> templates);
+
+  /// Gives a searchable object (add_object first) an AprilTag fixed on it: while the object is
+  /// searched, both poses of the tag (detection::TagStart) are refined and tested like the
+  /// detector's hypotheses, before them; when one is accepted, the restarts and the detector are
+  /// skipped on that frame. While the tag is seen, any pose (a candidate's, a restart's, the
+  /// detector's) must also put the tag where it is seen (search.tag.max_offset). Once found, the
+  /// object is tracked without the tag. Tag detection allocates (libapriltag): search frames only.
+  void set_tag_start(std::size_t object, std::unique_ptr<detection::TagStart> tag);
 
   /// Runs the search for this frame (see the class comment); `images` as given to the cycle.
   /// Returns one report per scene object (objects without templates are never searched).
@@ -96,6 +109,7 @@ class ObjectSearch {
     Eigen::Vector3d centre = Eigen::Vector3d::Zero();
     detection::ViewRange range;  // resolved for the model and camera
     std::vector<geometry::SE3> symmetries;
+    std::unique_ptr<detection::TagStart> tag;  // optional fiducial
   };
   /// T_cam_obj (or one of its symmetric equivalents) within the slot's view range and margin.
   [[nodiscard]] bool in_view_range(const Slot& s, const geometry::SE3& T) const;

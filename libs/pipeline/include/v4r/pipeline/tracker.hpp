@@ -36,6 +36,9 @@ class SingleObjectTracker {
   /// the detector's for this model and camera (detection::load_or_build with `dp`). Allocates.
   void enable_search(std::shared_ptr<const detection::TemplateSet> templates, const ObjectSearchParams& sp,
                      const detection::DetectorParams& dp);
+  /// Lets the search start from an AprilTag fixed on the object (after enable_search; see
+  /// ObjectSearch::set_tag_start).
+  void set_tag_start(std::unique_ptr<detection::TagStart> tag);
   /// Starts the object without a pose: it is `searching` until found (needs enable_search).
   void start_search();
   /// Runs one vision cycle on an 8-bit grey image (and optionally the BGR colour image) of the
