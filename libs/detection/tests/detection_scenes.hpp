@@ -116,21 +116,9 @@ inline cv::Mat empty_scene(const geometry::PinholeCamera& cam, int kind, const s
   return scaled(cv::Rect(x, y, cam.width, cam.height)).clone();
 }
 
-/// The paper's green household sponge as a box: 0.11 x 0.07 x 0.045 m, origin at its centre,
-/// every face coloured (RGB 0.2, 0.6, 0.1) by the .cao `colour` attribute.
-inline std::string sponge_cao() {
-  return "V1\n# a green sponge-like box, 0.11 x 0.07 x 0.045 m\n8\n"
-         "-0.055 -0.035 -0.0225\n0.055 -0.035 -0.0225\n0.055 0.035 -0.0225\n-0.055 0.035 -0.0225\n"
-         "-0.055 -0.035 0.0225\n0.055 -0.035 0.0225\n0.055 0.035 0.0225\n-0.055 0.035 0.0225\n"
-         "0\n0\n6\n"
-         "4 0 3 2 1 name=bottom colour=0.2,0.6,0.1\n"
-         "4 4 5 6 7 name=top colour=0.2,0.6,0.1\n"
-         "4 0 1 5 4 name=front colour=0.2,0.6,0.1\n"
-         "4 2 3 7 6 name=back colour=0.2,0.6,0.1\n"
-         "4 1 2 6 5 name=right colour=0.2,0.6,0.1\n"
-         "4 3 0 4 7 name=left colour=0.2,0.6,0.1\n"
-         "0\n0\n";
-}
+/// The paper's green household sponge as a box (synth::sponge_cao, data/sponge.cao): every face
+/// `colour=0.2,0.6,0.1`.
+inline std::string sponge_cao() { return synth::sponge_cao(); }
 
 /// Paints `n` random shaded patches (ellipses and rectangles) of colours other than green onto
 /// `img` where `keep` (CV_8UC1, may be empty) is 0: coloured things on the table, behind the object.

@@ -36,3 +36,16 @@ TEST(ModelColour, NoColouredFaceGivesNoColourAndAGivenColourCoversEveryFace) {
   EXPECT_EQ(g.faces().size(), m->faces().size());
   EXPECT_FALSE(m->faces()[0].attr.colour.has_value());  // the original is untouched
 }
+
+TEST(ModelColour, TheSpongeInDataIsAGreenBox) {
+  auto m = load_cao(std::string(V4R_DATA_DIR) + "/sponge.cao");
+  ASSERT_TRUE(m) << m.error().to_string();
+  EXPECT_EQ(m->faces().size(), 6u);
+  for (const Face& f : m->faces()) {
+    ASSERT_TRUE(f.attr.colour.has_value()) << f.attr.name;
+    EXPECT_TRUE(f.attr.colour->isApprox(Eigen::Vector3f(0.2f, 0.6f, 0.1f))) << f.attr.name;
+  }
+  double area = 0.0;
+  for (const Face& f : m->faces()) area += face_area(*m, f);
+  EXPECT_NEAR(area, 2 * (0.11 * 0.07 + 0.11 * 0.045 + 0.07 * 0.045), 1e-9);
+}
