@@ -101,11 +101,45 @@ TEST_F(DetectCli, BadInputIsNamed) {
   EXPECT_NE(r.err.find("detect.verify.accept_score"), std::string::npos) << r.err;
 }
 
+TEST_F(DetectCli, TheGreenSpongeIsFoundThroughItsColourRegion) {
+  // data/sponge.cao (built in as "sponge"): every face colour=0.2,0.6,0.1.
+  CliRun r = run("render --model sponge --frames 1 --distance 0.35 --out " + (dir_ / "sponge").string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  const std::string cam = (dir_ / "sponge" / "camera.yaml").string(), img = (dir_ / "sponge" / "frames" / "000000.png").string();
+  const std::string views = " --views elevation=30:55,azimuth=-60:-10,inplane=-10:10,distance=0.3:0.4 --cache-dir " +
+                            (dir_ / "cache").string();
+  r = run("detect --model sponge --camera " + cam + " --input " + img + views);
+  ASSERT_EQ(r.code, 0) << r.err << r.out;
+  EXPECT_NE(r.out.find("# colour stage: 1 region(s)"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find(" verified\n"), std::string::npos) << r.out;
+  // The same with the colour stage off: the whole image is searched.
+  r = run("detect --model sponge --camera " + cam + " --input " + img + views + " --set detect.colour.enabled=false");
+  EXPECT_EQ(r.out.find("# colour stage"), std::string::npos) << r.out;
+  // The steel box has no green: with --colour, nothing of that colour, no hypothesis.
+  r = run("detect " + common() + " --colour 0.2,0.6,0.1 --input " + seq("frames/000000.png"));
+  EXPECT_EQ(r.code, 3) << r.err << r.out;
+  EXPECT_NE(r.out.find("# colour stage: 0 region(s)"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("# 0 verified of 0 hypotheses"), std::string::npos) << r.out;
+}
+
+TEST_F(DetectCli, BadColourIsNamed) {
+  CliRun r = run("detect " + common() + " --colour 0.2,1.5,0.1 --input " + seq("frames/000000.png"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("--colour"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("component G must be a number in 0..1, found '1.5'"), std::string::npos) << r.err;
+  r = run("track --model " + seq("model.cao") + " --camera " + seq("camera.yaml") + " --input " + seq("frames") +
+          " --output " + (dir_ / "c.csv").string() + " --colour green");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("--colour"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("expected R,G,B"), std::string::npos) << r.err;
+}
+
 TEST_F(DetectCli, ConfigListsTheDetectorParametersAndTrackAcceptsThem) {
   const CliRun r = run("config");
   ASSERT_EQ(r.code, 0);
   EXPECT_NE(r.out.find("accept_score"), std::string::npos);
   EXPECT_NE(r.out.find("elevation_min"), std::string::npos);
+  EXPECT_NE(r.out.find("max_distance"), std::string::npos);  // detect.colour.*
   std::ofstream(dir_ / "my.yaml") << r.out;
   const CliRun t = run("track --model " + seq("model.cao") + " --camera " + seq("camera.yaml") + " --input " + seq("frames") +
                        " --init-pose-file " + seq("init_pose.txt") + " --output " + (dir_ / "p.csv").string() +

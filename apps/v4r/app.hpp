@@ -34,6 +34,7 @@ struct TrackOptions {
   detection::DetectorParams detect;    ///< detect.*: the search's templates and detector
   pipeline::ObjectSearchParams search;  ///< search.*: when and how the object is searched for
   std::string cache_dir;               ///< template cache folder (empty: the default)
+  std::optional<Eigen::Vector3f> colour;  ///< --colour: every face of the model gets this colour (RGB 0..1)
   double fps = 0.0;          ///< frame rate given by --fps; 0: the video's own rate, else filter.frame_interval
   bool file_times = false;   ///< time stamps from the image files' modification times
   double mesh_scale = 1.0;   ///< model units -> metres
@@ -59,7 +60,7 @@ struct TrackSummary {
   std::int64_t dropped = 0;  ///< live input: frames dropped because a newer one came first
 };
 
-/// The .cao text of a built-in model (box, ship, flange, section), or nothing.
+/// The .cao text of a built-in model (box, ship, flange, section, sponge), or nothing.
 std::optional<std::string> builtin_model_text(const std::string& name);
 
 /// True for the mesh extensions read through assimp (.obj, .ply, .stl, ...).
@@ -71,13 +72,21 @@ Expected<double> units_scale(const std::string& units);
 /// The scale of --mesh-scale / --model-units (an error when both are given and disagree).
 Expected<double> model_scale(const ModelUnitsArgs& a);
 
-/// Loads a model: a built-in name (box, ship, flange, section), a .cao file or a mesh (.obj,
+/// Loads a model: a built-in name (box, ship, flange, section, sponge), a .cao file or a mesh (.obj,
 /// .ply, .stl, ...); every length is multiplied by `scale` (file units -> metres). Errors name
 /// the file. Accepted imperfections of a .cao (faces slightly off their plane) go to `warnings`
 /// if given, else to the log.
 Expected<std::shared_ptr<const model::Model>> load_model(const std::string& path, double scale = 1.0,
                                                          const model::CaoReadOptions& cao = {},
                                                          std::vector<Error>* warnings = nullptr);
+
+/// Parses `--colour R,G,B` (three numbers in [0, 1], e.g. 0.2,0.6,0.1); an error names the option
+/// and the component at fault.
+Expected<Eigen::Vector3f> parse_colour(const std::string& spec, const std::string& option = "--colour");
+
+/// The model with every face coloured `colour` (when given): `--colour` for models without a
+/// face colour, searched by the detector's colour stage.
+std::shared_ptr<const model::Model> with_colour(std::shared_ptr<const model::Model> m, const std::optional<Eigen::Vector3f>& colour);
 
 /// Runs `v4r track`: loads inputs, tracks every frame, writes the CSV and the overlay.
 Expected<TrackSummary> run_track(const TrackOptions& opt);

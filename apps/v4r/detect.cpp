@@ -31,7 +31,7 @@ namespace {
 
 /// \brief Arguments shared by `v4r prepare` and `v4r detect`.
 struct DetectArgs {
-  std::string model, camera, input, views, cache_dir, config_file;
+  std::string model, camera, input, views, cache_dir, config_file, colour;
   std::vector<std::string> sets;
   ModelUnitsArgs units;
   bool all = false, progress = false;
@@ -135,6 +135,11 @@ Expected<Loaded> load_all(const DetectArgs& a, const char* cmd) {
   auto m = load_model(a.model, *scale);
   if (!m) return m.error();
   l.model = *m;
+  if (!a.colour.empty()) {
+    auto c = parse_colour(a.colour);
+    if (!c) return c.error();
+    l.model = with_colour(l.model, *c);
+  }
   if (a.camera.empty()) {
     l.cam = synth::default_camera();
   } else {
@@ -218,6 +223,8 @@ int run_detect(const DetectArgs& a) {
                w.z(), h.verification.score, h.verification.samples, h.verified ? "verified" : "rejected");
     ++printed;
   }
+  if (r.colour_regions >= 0)
+    fmt::print("# colour stage: {} region(s) of the model's colour searched ({:.1f} ms)\n", r.colour_regions, r.colour_ms);
   fmt::print("# {} verified of {} hypotheses; {:.1f} ms (gradients {:.1f}, search {:.1f}, refine and verify {:.1f})\n",
              r.verified, r.hypotheses, r.total_ms, r.gradient_ms, r.search_ms, r.refine_ms);
   if (r.verified == 0) {
@@ -228,7 +235,7 @@ int run_detect(const DetectArgs& a) {
 }
 
 void add_shared(CLI::App* c, DetectArgs& a) {
-  c->add_option("--model", a.model, "box, ship, flange, section, a .cao file or a mesh (.obj, .ply, .stl)")->required();
+  c->add_option("--model", a.model, "box, ship, flange, section, sponge, a .cao file or a mesh (.obj, .ply, .stl)")->required();
   c->add_option("--views", a.views,
                 "View range: elevation=MIN:MAX,azimuth=MIN:MAX,inplane=MIN:MAX (degrees),distance=MIN:MAX (m); "
                 "any subset, the rest from detect.views.*");
@@ -259,6 +266,9 @@ void add_detect_commands(CLI::App& app, int& exit_code) {
   detect->add_option("--camera", da->camera, "Calibration: OpenCV YAML/XML, ROS camera_info YAML or ViSP XML")->required();
   detect->add_option("--input", da->input, "Image file (8-bit grey or colour)")->required();
   detect->add_flag("--all", da->all, "Also print the hypotheses that failed verification");
+  detect->add_option("--colour,--color", da->colour,
+                     "Colour of the model's faces, R,G,B in 0..1 (e.g. 0.2,0.6,0.1): regions of it are searched first "
+                     "(detect.colour.*); replaces the model's face colours");
   detect->callback([da, detect, &exit_code] {
     da->units.mesh_scale_given = detect->get_option("--mesh-scale")->count() > 0;
     exit_code = run_detect(*da);

@@ -300,7 +300,8 @@ void add_scene_track_options(CLI::App* track, app::SceneTrackOptions& o) {
 std::string check_track_usage(CLI::App* track) {
   const auto given = [track](const char* name) { return track->get_option(name)->count() > 0; };
   if (given("--scene")) {
-    for (const char* o : {"--model", "--camera", "--input", "--init-pose", "--init-pose-file", "--output", "--gt", "--tag"})
+    for (const char* o : {"--model", "--camera", "--input", "--init-pose", "--init-pose-file", "--output", "--gt", "--tag",
+                          "--colour"})
       if (given(o)) return fmt::format("{} cannot be combined with --scene (the scene file describes it)", o);
     if (!given("--output-dir")) return "--scene needs --output-dir D (one D/<object>.csv per object)";
     return {};
@@ -311,7 +312,7 @@ std::string check_track_usage(CLI::App* track) {
   return {};
 }
 
-constexpr const char* kModelHelp = "box, ship, flange, section, a .cao file or a mesh (.obj, .ply, .stl)";
+constexpr const char* kModelHelp = "box, ship, flange, section, sponge, a .cao file or a mesh (.obj, .ply, .stl)";
 
 }  // namespace
 
@@ -364,6 +365,10 @@ int main(int argc, char** argv) {
     std::vector<std::string> sets;
     track->add_option("--config", config_file, "YAML file of tracker parameters (see `v4r config`)");
     track->add_option("--set", sets, "Set one parameter: --set track.rows=32 (repeatable)");
+    std::string track_colour;
+    track->add_option("--colour,--color", track_colour,
+                      "Colour of the model's faces, R,G,B in 0..1 (e.g. 0.2,0.6,0.1): the object search looks for "
+                      "regions of it first (detect.colour.*); replaces the model's face colours");
     track->add_option("--cache-dir", to.cache_dir,
                       "Folder of the detector's template cache (default $XDG_CACHE_HOME/v4r or ~/.cache/v4r)");
 
@@ -505,6 +510,14 @@ int main(int argc, char** argv) {
           return 1;
         }
         to.init_pose = *p;
+      }
+      if (!track_colour.empty()) {
+        auto c = app::parse_colour(track_colour);
+        if (!c) {
+          fmt::print(stderr, "v4r track: error: {}\n", c.error().to_string());
+          return 1;
+        }
+        to.colour = *c;
       }
       auto scale = app::model_scale(track_units);
       if (!scale) {

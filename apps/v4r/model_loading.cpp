@@ -2,6 +2,7 @@
 // Models as every subcommand reads them: built-in names, .cao files and meshes, in the user's units.
 #include <cctype>
 #include <cstdio>
+#include <charconv>
 #include <filesystem>
 
 #include <fmt/format.h>
@@ -9,6 +10,7 @@
 #include "app.hpp"
 #include "v4r/model/cao_reader.hpp"
 #include "v4r/model/mesh_reader.hpp"
+#include "v4r/model/model_colour.hpp"
 #include "v4r/model/model_scale.hpp"
 #include "v4r/synth/renderer.hpp"
 
@@ -30,6 +32,7 @@ std::optional<std::string> builtin_model_text(const std::string& name) {
   if (name == "ship" || name == "ship_mockup") return synth::ship_mockup_cao();
   if (name == "flange") return synth::flange_cao();
   if (name == "section" || name == "ship_section") return synth::ship_section_cao();
+  if (name == "sponge") return synth::sponge_cao();
   return std::nullopt;
 }
 
@@ -45,6 +48,31 @@ Expected<double> units_scale(const std::string& units) {
   if (u == "cm") return 0.01;
   if (u == "mm") return 0.001;
   return make_error("--model-units", 0, 0, fmt::format("unknown unit '{}' (mm, cm or m)", units));
+}
+
+Expected<Eigen::Vector3f> parse_colour(const std::string& spec, const std::string& option) {
+  Eigen::Vector3f rgb;
+  std::size_t start = 0;
+  for (int c = 0; c < 3; ++c) {
+    const std::size_t comma = spec.find(',', start);
+    if (c < 2 && comma == std::string::npos)
+      return make_error(option, 0, 0, fmt::format("'{}': expected R,G,B, three numbers in 0..1 (e.g. 0.2,0.6,0.1)", spec));
+    if (c == 2 && comma != std::string::npos)
+      return make_error(option, 0, 0, fmt::format("'{}': expected three values R,G,B, found more", spec));
+    const std::string part = spec.substr(start, c == 2 ? std::string::npos : comma - start);
+    double v = 0.0;
+    const auto [ptr, ec] = std::from_chars(part.data(), part.data() + part.size(), v);
+    if (part.empty() || ec != std::errc() || ptr != part.data() + part.size() || !(v >= 0.0 && v <= 1.0))
+      return make_error(option, 0, 0, fmt::format("'{}': component {} must be a number in 0..1, found '{}'", spec, "RGB"[c], part));
+    rgb[c] = static_cast<float>(v);
+    start = comma + 1;
+  }
+  return rgb;
+}
+
+std::shared_ptr<const model::Model> with_colour(std::shared_ptr<const model::Model> m, const std::optional<Eigen::Vector3f>& colour) {
+  if (!colour || !m) return m;
+  return std::make_shared<const model::Model>(model::with_face_colour(*m, *colour));
 }
 
 Expected<double> model_scale(const ModelUnitsArgs& a) {
@@ -63,7 +91,7 @@ Expected<std::shared_ptr<const model::Model>> load_model(const std::string& path
   std::error_code ec;
   if (!fs::exists(path, ec)) {
     const std::optional<std::string> text = builtin_model_text(path);
-    if (!text) return make_error(path, 0, 0, "model file not found (built-in models: box, ship, flange, section)");
+    if (!text) return make_error(path, 0, 0, "model file not found (built-in models: box, ship, flange, section, sponge)");
     m = model::parse_cao(*text, path, cao, warnings);
   } else if (fs::is_directory(path, ec)) {
     return make_error(path, 0, 0, "is a directory, not a model file");

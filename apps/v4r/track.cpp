@@ -107,6 +107,7 @@ Expected<void> enable_search(pipeline::SingleObjectTracker& tracker, const Track
 Expected<TrackSummary> run_track(const TrackOptions& opt) {
   auto model = load_model(opt.model_path, opt.mesh_scale);
   if (!model) return model.error();
+  *model = with_colour(*model, opt.colour);
   auto cam = io::load_camera(opt.camera_path, io::CameraFileOptions{.size_optional = true});
   if (!cam) return cam.error();
   if (opt.tag && !opt.search.enabled) return make_error("--tag is used by the search, and search.enabled is false");

@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "v4r/core/clock.hpp"
+#include "v4r/model/model_colour.hpp"
 
 namespace v4r::detection {
 
@@ -16,13 +17,18 @@ Detector::Detector(std::shared_ptr<const model::Model> model, std::shared_ptr<co
       p_(p),
       pyramid_(cam.width, cam.height, p.search.fine_spread, p.search.coarse_spread),
       aligner_(*model_, cam, p) {
+  if (p_.colour.enabled)
+    if (const auto rgb = model::dominant_face_colour(*model_)) {
+      colour_ = std::make_unique<ColourRegions>(*model_, *templates_, cam_, *rgb, p_.colour);
+      if (!colour_->usable()) colour_.reset();
+    }
   const OrientationLevel& c = pyramid_.coarse();
   acc_.assign(static_cast<std::size_t>(c.lin_width) * c.lin_height, 0);
-  coarse_.reserve(static_cast<std::size_t>(p_.search.coarse_candidates) + 1);
+  coarse_.reserve(static_cast<std::size_t>(std::max(p_.search.coarse_candidates, p_.colour.coarse_candidates)) + 1);
   std::size_t max_children = 0;
   for (std::size_t k = 0; k + 1 < templates_->child_offsets.size(); ++k)
     max_children = std::max<std::size_t>(max_children, templates_->child_offsets[k + 1] - templates_->child_offsets[k]);
-  fine_.reserve(static_cast<std::size_t>(p_.search.fine_expand) * max_children + 1);
+  fine_.reserve(static_cast<std::size_t>(std::max(p_.search.fine_expand, p_.colour.fine_expand)) * max_children + 1);
   picked_.reserve(static_cast<std::size_t>(p_.search.max_hypotheses));
   work_.reserve(static_cast<std::size_t>(p_.search.max_hypotheses));
 }
@@ -34,9 +40,26 @@ int Detector::refine(geometry::SE3& T) { return aligner_.refine(pyramid_, T); }
 
 DetectionResult Detector::detect(const image::ColourView& bgr, std::span<Hypothesis> out) {
   const auto t0 = Clock::now();
-  if (!set_image(bgr)) return DetectionResult{DetectionResult::Status::kBadImage};
+  int regions = -1;
+  if (colour_) {
+    regions = colour_->find(bgr);
+    if (regions < 0) return DetectionResult{DetectionResult::Status::kBadImage};
+  }
+  const double colour_ms = ms_between(t0, Clock::now());
+  if (regions == 0) {  // nothing of the model's colour: no hypothesis, no gradients
+    DetectionResult r;
+    r.colour_regions = 0;
+    r.colour_ms = r.total_ms = colour_ms;
+    return r;
+  }
+  use_colour_ = regions > 0;
+  if (!(use_colour_ ? pyramid_.compute(bgr, p_.search.min_gradient, colour_roi()) : set_image(bgr)))
+    return DetectionResult{DetectionResult::Status::kBadImage};
   DetectionResult r = run(out);
-  r.gradient_ms = ms_between(t0, Clock::now()) - r.search_ms - r.refine_ms;
+  use_colour_ = false;
+  r.colour_regions = regions;
+  r.colour_ms = colour_ms;
+  r.gradient_ms = ms_between(t0, Clock::now()) - r.search_ms - r.refine_ms - colour_ms;
   r.total_ms = ms_between(t0, Clock::now());
   return r;
 }
@@ -53,55 +76,94 @@ DetectionResult Detector::detect(const image::ImageView& grey, std::span<Hypothe
 void Detector::coarse_search() {
   const TemplateSet& ts = *templates_;
   const OrientationLevel& L = pyramid_.coarse();
-  const int lw = L.lin_width;
-  const std::size_t K = static_cast<std::size_t>(p_.search.coarse_candidates);
   coarse_.clear();
   int worst = 0;  // smallest score in coarse_ once it is full
   for (std::size_t k = 0; k < ts.coarse.templates.size(); ++k) {
     const Template& t = ts.coarse.templates[k];
     if (t.count < 4) continue;
     // Anchors (2i, 2j) whose template lies inside the level.
-    const int i0 = (-t.x0 + 1) / 2;
-    const int j0 = (-t.y0 + 1) / 2;
+    const int i0 = std::max(0, (-t.x0 + 1) / 2), j0 = std::max(0, (-t.y0 + 1) / 2);
     const int i1 = (L.width - 1 - t.x1) / 2, j1 = (L.height - 1 - t.y1) / 2;
-    const int ilo = std::max(0, i0), jlo = std::max(0, j0);
-    if (i1 < ilo || j1 < jlo || 2 * i1 + t.x1 > L.width - 1 || 2 * j1 + t.y1 > L.height - 1) continue;
-    const int aw = i1 - ilo + 1, ah = j1 - jlo + 1;
-    std::fill(acc_.begin(), acc_.begin() + static_cast<std::ptrdiff_t>(aw) * ah, 0);
-    for (std::uint32_t f = t.first; f < t.first + t.count; ++f) {
-      const Feature& ft = ts.coarse.features[f];
-      const int px = ft.x & 1, py = ft.y & 1;
-      const int dx = (ft.x - px) / 2, dy = (ft.y - py) / 2;
-      const std::uint8_t* lin = L.linear[ft.orientation][py * 2 + px].data();
-      for (int j = 0; j < ah; ++j) {
-        const std::uint8_t* src = lin + static_cast<std::size_t>(jlo + j + dy) * lw + (ilo + dx);
-        std::uint8_t* dst = acc_.data() + static_cast<std::size_t>(j) * aw;
-        for (int i = 0; i < aw; ++i) dst[i] = static_cast<std::uint8_t>(dst[i] + src[i]);
-      }
+    if (i1 < i0 || j1 < j0 || 2 * i1 + t.x1 > L.width - 1 || 2 * j1 + t.y1 > L.height - 1) continue;
+    if (!use_colour_) {
+      scan_coarse(k, i0, j0, i1, j1, worst);
+      continue;
     }
-    int best = -1, bi = 0;
-    const int n = aw * ah;
-    for (int i = 0; i < n; ++i)
-      if (acc_[static_cast<std::size_t>(i)] > best) {
-        best = acc_[static_cast<std::size_t>(i)];
-        bi = i;
-      }
-    const int min_score = static_cast<int>(std::ceil(p_.search.coarse_min_score * 4.0 * t.count));
-    if (best < min_score) continue;
-    // Scores compared as shares of each template's best possible score (x1000).
-    const int share = static_cast<int>(1000.0 * best / (4.0 * t.count));
-    if (coarse_.size() >= K && share <= worst) continue;
-    Candidate c{share, static_cast<std::uint32_t>(k), static_cast<std::int16_t>(2 * (ilo + bi % aw)),
-                static_cast<std::int16_t>(2 * (jlo + bi / aw))};
-    if (coarse_.size() < K) {
-      coarse_.push_back(c);
-    } else {
-      auto it = std::min_element(coarse_.begin(), coarse_.end(), [](const Candidate& a, const Candidate& b) { return a.score < b.score; });
-      *it = c;
+    // Only where the template's coloured footprint holds a colour region of matching area.
+    for (const ColourRegion& reg : colour_->regions()) {
+      int ax0 = 0, ay0 = 0, ax1 = 0, ay1 = 0;
+      if (!colour_->anchor_window(k, reg, ax0, ay0, ax1, ay1)) continue;
+      const int ilo = std::max(i0, (ax0 + 1) / 2), ihi = std::min(i1, ax1 / 2);
+      const int jlo = std::max(j0, (ay0 + 1) / 2), jhi = std::min(j1, ay1 / 2);
+      if (ilo > ihi || jlo > jhi) continue;
+      scan_coarse(k, ilo, jlo, ihi, jhi, worst);
     }
-    if (coarse_.size() >= K)
-      worst = std::min_element(coarse_.begin(), coarse_.end(), [](const Candidate& a, const Candidate& b) { return a.score < b.score; })->score;
   }
+}
+
+void Detector::scan_coarse(std::size_t k, int ilo, int jlo, int ihi, int jhi, int& worst) {
+  const TemplateSet& ts = *templates_;
+  const OrientationLevel& L = pyramid_.coarse();
+  const int lw = L.lin_width;
+  const std::size_t K = static_cast<std::size_t>(use_colour_ ? p_.colour.coarse_candidates : p_.search.coarse_candidates);
+  const Template& t = ts.coarse.templates[k];
+  const int aw = ihi - ilo + 1, ah = jhi - jlo + 1;
+  std::fill(acc_.begin(), acc_.begin() + static_cast<std::ptrdiff_t>(aw) * ah, 0);
+  for (std::uint32_t f = t.first; f < t.first + t.count; ++f) {
+    const Feature& ft = ts.coarse.features[f];
+    const int px = ft.x & 1, py = ft.y & 1;
+    const int dx = (ft.x - px) / 2, dy = (ft.y - py) / 2;
+    const std::uint8_t* lin = L.linear[ft.orientation][py * 2 + px].data();
+    for (int j = 0; j < ah; ++j) {
+      const std::uint8_t* src = lin + static_cast<std::size_t>(jlo + j + dy) * lw + (ilo + dx);
+      std::uint8_t* dst = acc_.data() + static_cast<std::size_t>(j) * aw;
+      for (int i = 0; i < aw; ++i) dst[i] = static_cast<std::uint8_t>(dst[i] + src[i]);
+    }
+  }
+  int best = -1, bi = 0;
+  const int n = aw * ah;
+  for (int i = 0; i < n; ++i)
+    if (acc_[static_cast<std::size_t>(i)] > best) {
+      best = acc_[static_cast<std::size_t>(i)];
+      bi = i;
+    }
+  const int min_score = static_cast<int>(std::ceil(p_.search.coarse_min_score * 4.0 * t.count));
+  if (best < min_score) return;
+  // Scores compared as shares of each template's best possible score (x1000).
+  const int share = static_cast<int>(1000.0 * best / (4.0 * t.count));
+  if (coarse_.size() >= K && share <= worst) return;
+  Candidate c{share, static_cast<std::uint32_t>(k), static_cast<std::int16_t>(2 * (ilo + bi % aw)),
+              static_cast<std::int16_t>(2 * (jlo + bi / aw))};
+  if (coarse_.size() < K) {
+    coarse_.push_back(c);
+  } else {
+    auto it = std::min_element(coarse_.begin(), coarse_.end(), [](const Candidate& a, const Candidate& b) { return a.score < b.score; });
+    *it = c;
+  }
+  if (coarse_.size() >= K)
+    worst = std::min_element(coarse_.begin(), coarse_.end(), [](const Candidate& a, const Candidate& b) { return a.score < b.score; })->score;
+}
+
+PixelBox Detector::colour_roi() const {
+  const TemplateSet& ts = *templates_;
+  int x0 = 1 << 20, y0 = 1 << 20, x1 = -(1 << 20), y1 = -(1 << 20);  // coarse pixels, inclusive
+  for (std::size_t k = 0; k < ts.coarse.templates.size(); ++k) {
+    const Template& t = ts.coarse.templates[k];
+    for (const ColourRegion& reg : colour_->regions()) {
+      int ax0 = 0, ay0 = 0, ax1 = 0, ay1 = 0;
+      if (!colour_->anchor_window(k, reg, ax0, ay0, ax1, ay1)) continue;
+      // The template's extent grown by 15 % of its size: its children at the fine level are up
+      // to one distance step (detect.templates.scale_step) larger.
+      const int gx = (t.x1 - t.x0) * 15 / 100 + 1, gy = (t.y1 - t.y0) * 15 / 100 + 1;
+      x0 = std::min(x0, ax0 + t.x0 - gx);
+      y0 = std::min(y0, ay0 + t.y0 - gy);
+      x1 = std::max(x1, ax1 + t.x1 + gx);
+      y1 = std::max(y1, ay1 + t.y1 + gy);
+    }
+  }
+  if (x1 < x0) return PixelBox{};
+  const int m = p_.colour.roi_margin;
+  return PixelBox{4 * x0 - m, 4 * y0 - m, 4 * (x1 + 1) + m, 4 * (y1 + 1) + m};
 }
 
 int Detector::score_fine(std::uint32_t view, int cx, int cy, int& bx, int& by) const {
@@ -141,7 +203,8 @@ void Detector::fine_search() {
     c.score = s;
   }
   std::sort(coarse_.begin(), coarse_.end(), [](const Candidate& a, const Candidate& b) { return a.score > b.score; });
-  const std::size_t expand = std::min(coarse_.size(), static_cast<std::size_t>(p_.search.fine_expand));
+  const std::size_t expand =
+      std::min(coarse_.size(), static_cast<std::size_t>(use_colour_ ? p_.colour.fine_expand : p_.search.fine_expand));
   for (std::size_t k = 0; k < expand; ++k) {
     const Candidate& c = coarse_[k];
     if (c.score < 0) break;
@@ -157,7 +220,8 @@ void Detector::fine_search() {
   std::sort(fine_.begin(), fine_.end(), [](const Candidate& a, const Candidate& b) { return a.score > b.score; });
   // Distinct hypotheses: not the same place with nearly the same view.
   picked_.clear();
-  const std::size_t want = static_cast<std::size_t>(p_.search.max_hypotheses);
+  const std::size_t want = static_cast<std::size_t>(
+      use_colour_ ? std::min(p_.colour.max_hypotheses, p_.search.max_hypotheses) : p_.search.max_hypotheses);
   for (const Candidate& c : fine_) {
     if (picked_.size() >= want) break;
     bool dup = false;

@@ -56,6 +56,24 @@ void add_params(ParamRegistry& r, DetectorParams& p) {
   r.add("detect.verify.short_pieces", &f.short_pieces, "an edge piece shorter than min_run samples counts when all of it matches");
   r.add("detect.verify.min_run", &f.min_run, 1, 64, "", "matched samples count only in runs of this many consecutive matches along an edge");
   r.add("detect.verify.accept_score", &f.accept_score, 0.0, 1.0, "", "share of matched edge samples of a verified pose");
+  auto& c = p.colour;
+  r.add("detect.colour.enabled", &c.enabled,
+        "models with a face colour: search only around regions of that colour at 1/4 resolution (colour images)");
+  r.add("detect.colour.max_distance", &c.max_distance, 0.005, 0.5, "",
+        "chromaticity distance (normalised r = R/(R+G+B), g = G/(R+G+B)) of a pixel of the model's colour");
+  r.add("detect.colour.min_brightness", &c.min_brightness, 0.0, 255.0, "grey", "darker pixels (mean of R, G, B) carry no chromaticity");
+  r.add("detect.colour.min_area_ratio", &c.min_area_ratio, 0.01, 1.0, "", "smallest region area over a template's coloured area (occlusion)");
+  r.add("detect.colour.max_area_ratio", &c.max_area_ratio, 1.0, 10.0, "", "largest region area over a template's coloured area");
+  r.add("detect.colour.min_region", &c.min_region_px, 1, 10000, "px^2", "smallest region at 1/4 resolution");
+  r.add("detect.colour.margin", &c.margin, 0, 32, "px", "at 1/4 resolution: how far a template's coloured footprint may miss a region");
+  r.add("detect.colour.max_regions", &c.max_regions, 1, 64, "", "largest plausible colour regions searched per frame");
+  r.add("detect.colour.roi_margin", &c.roi_margin, 0, 1000, "px",
+        "gradients only in the box of the templates placed over the colour regions, grown by this");
+  r.add("detect.colour.coarse_candidates", &c.coarse_candidates, 1, 1024, "",
+        "coarse candidates probed at 1/2 resolution when the colour regions fix place and size");
+  r.add("detect.colour.fine_expand", &c.fine_expand, 1, 1024, "", "best probed candidates expanded, with colour regions");
+  r.add("detect.colour.max_hypotheses", &c.max_hypotheses, 1, 64, "",
+        "hypotheses refined and verified per frame with colour regions (at most detect.search.max_hypotheses)");
 }
 
 Expected<void> validate(const DetectorParams& p) {
@@ -88,6 +106,9 @@ Expected<void> validate(const DetectorParams& p) {
   if (p.templates.coarse_stride < 1 || p.templates.coarse_stride > 4)
     return bad("detect.templates.coarse_stride", "must lie within 1 .. 4");
   if (p.search.max_hypotheses < 1) return bad("detect.search.max_hypotheses", "must be at least 1");
+  if (p.colour.min_area_ratio > p.colour.max_area_ratio)
+    return bad("detect.colour.min_area_ratio", fmt::format("{} is above max_area_ratio {}", p.colour.min_area_ratio, p.colour.max_area_ratio));
+  if (p.colour.max_regions < 1) return bad("detect.colour.max_regions", "must be at least 1");
   return {};
 }
 

@@ -10,27 +10,31 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
-/// Sobel gradient of an interleaved image with `ch` channels, the channel of largest magnitude
-/// per pixel; border pixels get 0.
-void sobel_max(const std::uint8_t* data, int stride, int ch, int w, int h, std::int16_t* gx, std::int16_t* gy) {
-  for (int x = 0; x < w; ++x) {
-    gx[x] = gy[x] = 0;
-    gx[static_cast<std::size_t>(h - 1) * w + x] = gy[static_cast<std::size_t>(h - 1) * w + x] = 0;
-  }
-  for (int y = 1; y + 1 < h; ++y) {
+/// Sobel gradient of an interleaved image (w x h, `ch` channels), the channel of largest
+/// magnitude per pixel, at the pixels of `b` (clipped to the image's interior); output rows are
+/// w values apart. Image border pixels get 0; pixels outside `b` are not written.
+void sobel_max(const std::uint8_t* data, int stride, int ch, int w, int h, PixelBox b, std::int16_t* gx, std::int16_t* gy) {
+  if (b.y0 == 0 || b.y1 == h)
+    for (int x = b.x0; x < b.x1; ++x) {
+      if (b.y0 == 0) gx[x] = gy[x] = 0;
+      if (b.y1 == h) gx[static_cast<std::size_t>(h - 1) * w + x] = gy[static_cast<std::size_t>(h - 1) * w + x] = 0;
+    }
+  const int xa = std::max(1, b.x0), xb = std::min(w - 1, b.x1);
+  for (int y = std::max(1, b.y0); y < std::min(h - 1, b.y1); ++y) {
     const std::uint8_t* r0 = data + static_cast<long>(y - 1) * stride;
     const std::uint8_t* r1 = r0 + stride;
     const std::uint8_t* r2 = r1 + stride;
     std::int16_t* ox = gx + static_cast<std::size_t>(y) * w;
     std::int16_t* oy = gy + static_cast<std::size_t>(y) * w;
-    ox[0] = oy[0] = ox[w - 1] = oy[w - 1] = 0;
+    if (b.x0 == 0) ox[0] = oy[0] = 0;
+    if (b.x1 == w) ox[w - 1] = oy[w - 1] = 0;
     if (ch == 1) {
-      for (int x = 1; x + 1 < w; ++x) {
+      for (int x = xa; x < xb; ++x) {
         ox[x] = static_cast<std::int16_t>((r0[x + 1] - r0[x - 1]) + 2 * (r1[x + 1] - r1[x - 1]) + (r2[x + 1] - r2[x - 1]));
         oy[x] = static_cast<std::int16_t>((r2[x - 1] - r0[x - 1]) + 2 * (r2[x] - r0[x]) + (r2[x + 1] - r0[x + 1]));
       }
     } else {
-      for (int x = 1; x + 1 < w; ++x) {
+      for (int x = xa; x < xb; ++x) {
         int best = -1, bx = 0, by = 0;
         for (int c = 0; c < ch; ++c) {
           const int l = (x - 1) * ch + c, m = x * ch + c, r = (x + 1) * ch + c;
@@ -50,18 +54,25 @@ void sobel_max(const std::uint8_t* data, int stride, int ch, int w, int h, std::
   }
 }
 
-/// 2x2 mean of an interleaved image into a dense one of size (w/2) x (h/2).
-void halve(const std::uint8_t* src, int stride, int ch, int w2, int h2, std::uint8_t* dst) {
-  for (int y = 0; y < h2; ++y) {
+/// 2x2 mean of an interleaved image into a dense one of size w2 x h2, at the pixels of `b`
+/// (output pixels).
+void halve(const std::uint8_t* src, int stride, int ch, int w2, PixelBox b, std::uint8_t* dst) {
+  for (int y = b.y0; y < b.y1; ++y) {
     const std::uint8_t* a = src + static_cast<long>(2 * y) * stride;
-    const std::uint8_t* b = a + stride;
+    const std::uint8_t* bb = a + stride;
     std::uint8_t* o = dst + static_cast<std::size_t>(y) * w2 * ch;
-    for (int x = 0; x < w2; ++x)
+    for (int x = b.x0; x < b.x1; ++x)
       for (int c = 0; c < ch; ++c) {
         const int i = 2 * x * ch + c;
-        o[x * ch + c] = static_cast<std::uint8_t>((a[i] + a[i + ch] + b[i] + b[i + ch] + 2) >> 2);
+        o[x * ch + c] = static_cast<std::uint8_t>((a[i] + a[i + ch] + bb[i] + bb[i + ch] + 2) >> 2);
       }
   }
+}
+
+/// `b` divided by `f` (outward) and grown by `grow`, clipped to w x h.
+PixelBox scaled(PixelBox b, int f, int grow, int w, int h) {
+  return PixelBox{std::max(0, b.x0 / f - grow), std::max(0, b.y0 / f - grow), std::min(w, (b.x1 + f - 1) / f + grow),
+                  std::min(h, (b.y1 + f - 1) / f + grow)};
 }
 
 void allocate(OrientationLevel& l, int w, int h, int spread, bool linear) {
@@ -127,66 +138,102 @@ GradientPyramid::GradientPyramid(int width, int height, int fine_spread, int coa
 
 bool GradientPyramid::compute(const image::ImageView& grey, double min_gradient) {
   if (grey.empty() || grey.width != width_ || grey.height != height_) return false;
-  return compute_from(grey.data, grey.stride, 1, min_gradient);
+  return compute_from(grey.data, grey.stride, 1, min_gradient, PixelBox{0, 0, width_, height_});
 }
 
 bool GradientPyramid::compute(const image::ColourView& bgr, double min_gradient) {
   if (bgr.empty() || bgr.width != width_ || bgr.height != height_) return false;
-  return compute_from(bgr.data, bgr.stride, 3, min_gradient);
+  return compute_from(bgr.data, bgr.stride, 3, min_gradient, PixelBox{0, 0, width_, height_});
 }
 
-bool GradientPyramid::compute_from(const std::uint8_t* data, int stride, int ch, double min_gradient) {
-  sobel_max(data, stride, ch, width_, height_, gx_.data(), gy_.data());
-  halve(data, stride, ch, fine_.width, fine_.height, fine_.image.data());
-  halve(fine_.image.data(), fine_.width * ch, ch, coarse_.width, coarse_.height, coarse_.image.data());
-  orientations(fine_, ch, min_gradient, false);
-  orientations(coarse_, ch, min_gradient, true);
+bool GradientPyramid::compute(const image::ColourView& bgr, double min_gradient, PixelBox roi) {
+  if (bgr.empty() || bgr.width != width_ || bgr.height != height_) return false;
+  // Multiples of 4, so that the levels' pixels inside are whole.
+  roi = PixelBox{std::max(0, roi.x0 & ~3), std::max(0, roi.y0 & ~3), std::min(width_, (roi.x1 + 3) & ~3),
+                 std::min(height_, (roi.y1 + 3) & ~3)};
+  if (roi.empty()) roi = PixelBox{0, 0, 4, 4};
+  return compute_from(bgr.data, bgr.stride, 3, min_gradient, roi);
+}
+
+void GradientPyramid::clear() {
+  std::fill(gx_.begin(), gx_.end(), 0);
+  std::fill(gy_.begin(), gy_.end(), 0);
+  for (OrientationLevel* l : {&fine_, &coarse_}) {
+    std::fill(l->bits.begin(), l->bits.end(), 0);
+    std::fill(l->spread_bits.begin(), l->spread_bits.end(), 0);
+    for (auto& r : l->response) std::fill(r.begin(), r.end(), 0);
+    for (auto& o : l->linear)
+      for (auto& ph : o) std::fill(ph.begin(), ph.end(), 0);
+  }
+}
+
+bool GradientPyramid::compute_from(const std::uint8_t* data, int stride, int ch, double min_gradient, PixelBox roi) {
+  const bool whole = roi.x0 == 0 && roi.y0 == 0 && roi.x1 == width_ && roi.y1 == height_;
+  if (!whole) clear();
+  sobel_max(data, stride, ch, width_, height_, roi, gx_.data(), gy_.data());
+  // Each level's box (level pixels) inside the roi; the level images wider for the level's Sobel
+  // (1 pixel) and the next halving (2 fine pixels per coarse one).
+  const PixelBox fb = scaled(roi, 2, 0, fine_.width, fine_.height), cb = scaled(roi, 4, 0, coarse_.width, coarse_.height);
+  halve(data, stride, ch, fine_.width, scaled(roi, 2, 2, fine_.width, fine_.height), fine_.image.data());
+  halve(fine_.image.data(), fine_.width * ch, ch, coarse_.width, scaled(roi, 4, 1, coarse_.width, coarse_.height),
+        coarse_.image.data());
+  orientations(fine_, ch, min_gradient, false, fb);
+  orientations(coarse_, ch, min_gradient, true, cb);
   return true;
 }
 
-void GradientPyramid::orientations(OrientationLevel& l, int ch, double min_gradient, bool linear) {
+void GradientPyramid::orientations(OrientationLevel& l, int ch, double min_gradient, bool linear, PixelBox b) {
   const int w = l.width, h = l.height;
-  sobel_max(l.image.data(), w * ch, ch, w, h, lgx_.data(), lgy_.data());
+  sobel_max(l.image.data(), w * ch, ch, w, h, b, lgx_.data(), lgy_.data());
   // Sobel is 8x the gradient per pixel.
   const double t = 8.0 * min_gradient;
   const std::int64_t t2 = static_cast<std::int64_t>(t * t);
   // Orientation boundaries: bin k covers angles [k, k+1) * pi / 8 in the upper half plane.
-  for (std::size_t i = 0, n = static_cast<std::size_t>(w) * h; i < n; ++i) {
-    int dx = lgx_[i], dy = lgy_[i];
-    const std::int64_t m2 = static_cast<std::int64_t>(dx) * dx + static_cast<std::int64_t>(dy) * dy;
-    if (m2 <= t2 || m2 == 0) {
-      l.bits[i] = 0;
-      continue;
+  for (int y = b.y0; y < b.y1; ++y)
+    for (std::size_t i = static_cast<std::size_t>(y) * w + b.x0, e = static_cast<std::size_t>(y) * w + b.x1; i < e; ++i) {
+      int dx = lgx_[i], dy = lgy_[i];
+      const std::int64_t m2 = static_cast<std::int64_t>(dx) * dx + static_cast<std::int64_t>(dy) * dy;
+      if (m2 <= t2 || m2 == 0) {
+        l.bits[i] = 0;
+        continue;
+      }
+      l.bits[i] = static_cast<std::uint8_t>(1u << quantise_orientation(dx, dy));
     }
-    l.bits[i] = static_cast<std::uint8_t>(1u << quantise_orientation(dx, dy));
-  }
-  // Spread: OR over (2r+1)^2, separably (rows into spread_bits, then columns in place via a row).
+  // Spread: OR over (2r+1)^2, separably (rows into spread_bits, then columns in place via a row),
+  // over the box grown by r (outside the box the bits are 0).
   const int r = l.spread;
-  for (int y = 0; y < h; ++y) {
+  const PixelBox g{std::max(0, b.x0 - r), std::max(0, b.y0 - r), std::min(w, b.x1 + r), std::min(h, b.y1 + r)};
+  for (int y = g.y0; y < g.y1; ++y) {
     const std::uint8_t* src = l.bits.data() + static_cast<std::size_t>(y) * w;
     std::uint8_t* dst = l.spread_bits.data() + static_cast<std::size_t>(y) * w;
-    for (int x = 0; x < w; ++x) {
+    for (int x = g.x0; x < g.x1; ++x) {
       std::uint8_t m = 0;
       for (int k = std::max(0, x - r); k <= std::min(w - 1, x + r); ++k) m |= src[k];
       dst[x] = m;
     }
   }
   // Columns: write into bits (no longer needed) and swap roles by copying back.
-  for (int y = 0; y < h; ++y) {
+  for (int y = g.y0; y < g.y1; ++y) {
     std::uint8_t* dst = l.bits.data() + static_cast<std::size_t>(y) * w;
-    const int y0 = std::max(0, y - r), y1 = std::min(h - 1, y + r);
-    for (int x = 0; x < w; ++x) dst[x] = 0;
+    const int y0 = std::max(g.y0, y - r), y1 = std::min(g.y1 - 1, y + r);
+    for (int x = g.x0; x < g.x1; ++x) dst[x] = 0;
     for (int yy = y0; yy <= y1; ++yy) {
       const std::uint8_t* src = l.spread_bits.data() + static_cast<std::size_t>(yy) * w;
-      for (int x = 0; x < w; ++x) dst[x] |= src[x];
+      for (int x = g.x0; x < g.x1; ++x) dst[x] |= src[x];
     }
   }
-  std::copy(l.bits.begin(), l.bits.end(), l.spread_bits.begin());
+  for (int y = g.y0; y < g.y1; ++y) {
+    const std::size_t i0 = static_cast<std::size_t>(y) * w;
+    std::copy(l.bits.begin() + static_cast<std::ptrdiff_t>(i0 + g.x0), l.bits.begin() + static_cast<std::ptrdiff_t>(i0 + g.x1),
+              l.spread_bits.begin() + static_cast<std::ptrdiff_t>(i0 + g.x0));
+  }
   const SimilarityLut& L = lut();
   for (int o = 0; o < kOrientations; ++o) {
     std::uint8_t* resp = l.response[o].data();
     const std::uint8_t* tab = L.v[o];
-    for (std::size_t i = 0, n = static_cast<std::size_t>(w) * h; i < n; ++i) resp[i] = tab[l.spread_bits[i]];
+    for (int y = g.y0; y < g.y1; ++y)
+      for (std::size_t i = static_cast<std::size_t>(y) * w + g.x0, e = static_cast<std::size_t>(y) * w + g.x1; i < e; ++i)
+        resp[i] = tab[l.spread_bits[i]];
     if (!linear) continue;
     for (int py = 0; py < 2; ++py)
       for (int px = 0; px < 2; ++px) {

@@ -4,6 +4,7 @@
 // object-free images (clutter backgrounds, real photos).
 #pragma once
 
+#include <array>
 #include <cmath>
 #include <random>
 #include <string>
@@ -113,6 +114,63 @@ inline cv::Mat empty_scene(const geometry::PinholeCamera& cam, int kind, const s
   const int x = std::uniform_int_distribution<int>(0, scaled.cols - cam.width)(rng);
   const int y = std::uniform_int_distribution<int>(0, scaled.rows - cam.height)(rng);
   return scaled(cv::Rect(x, y, cam.width, cam.height)).clone();
+}
+
+/// The paper's green household sponge as a box (synth::sponge_cao, data/sponge.cao): every face
+/// `colour=0.2,0.6,0.1`.
+inline std::string sponge_cao() { return synth::sponge_cao(); }
+
+/// Paints `n` random shaded patches (ellipses and rectangles) of colours other than green onto
+/// `img` where `keep` (CV_8UC1, may be empty) is 0: coloured things on the table, behind the object.
+inline void add_colour_clutter(cv::Mat& img, const cv::Mat& keep, int n, std::mt19937& rng) {
+  static const std::array<cv::Scalar, 8> kPalette{
+      cv::Scalar(40, 40, 200),  cv::Scalar(200, 80, 30),  cv::Scalar(40, 200, 230), cv::Scalar(30, 120, 240),
+      cv::Scalar(180, 50, 180), cv::Scalar(40, 70, 120), cv::Scalar(200, 200, 60), cv::Scalar(120, 120, 120)};
+  cv::Mat layer = img.clone();
+  const auto uni = [&](int lo, int hi) { return std::uniform_int_distribution<int>(lo, hi)(rng); };
+  for (int i = 0; i < n; ++i) {
+    const cv::Scalar base = kPalette[static_cast<std::size_t>(uni(0, static_cast<int>(kPalette.size()) - 1))];
+    const double shade = std::uniform_real_distribution<double>(0.6, 1.1)(rng);
+    const cv::Scalar c = base * shade;
+    const cv::Point centre(uni(0, img.cols - 1), uni(0, img.rows - 1));
+    const cv::Size axes(uni(15, 90), uni(10, 60));
+    if (i % 2 == 0) cv::ellipse(layer, centre, axes, uni(0, 180), 0, 360, c, cv::FILLED, cv::LINE_AA);
+    else cv::rectangle(layer, cv::Rect(centre - cv::Point(axes.width, axes.height), axes * 2), c, cv::FILLED, cv::LINE_AA);
+  }
+  if (keep.empty()) {
+    layer.copyTo(img);
+    return;
+  }
+  cv::Mat behind;
+  cv::bitwise_not(keep, behind);
+  layer.copyTo(img, behind);
+}
+
+/// The sponge at `T` on a cluttered table (the renderer's clutter condition) with 8 coloured
+/// patches behind it; without `with_object`, the same table without it.
+inline cv::Mat render_sponge_scene(const model::Model& m, const geometry::SE3& T, const geometry::PinholeCamera& cam,
+                                   std::uint32_t seed, bool with_object = true) {
+  synth::RenderOptions ro = synth::options_for(synth::Condition::kClutter);
+  ro.seed = seed;
+  ro.cycle_frames = 2;
+  synth::Renderer r(cam, ro);
+  r.set_scene_reference(m, {T, T});
+  std::mt19937 rng(seed * 7919u + 1u);
+  cv::Mat img;
+  if (with_object) {
+    synth::FrameInfo info;
+    img = r.render(m, T, 0, nullptr, &info);
+    // The patches are painted after the sensor noise: give them their own.
+    add_colour_clutter(img, info.object_mask, 8, rng);
+  } else {
+    r.background().convertTo(img, CV_8UC3);
+    add_colour_clutter(img, cv::Mat(), 8, rng);
+  }
+  cv::Mat noise(img.size(), CV_16SC3);
+  cv::randn(noise, cv::Scalar::all(0), cv::Scalar::all(2));
+  cv::Mat out;
+  cv::add(img, noise, out, cv::noArray(), CV_8UC3);
+  return out;
 }
 
 }  // namespace v4r::detection::scenes

@@ -9,17 +9,22 @@
 
 #include <gtest/gtest.h>
 
+#include "allocation_counter.hpp"
 #include "detection_scenes.hpp"
 #include "v4r/detection/detector.hpp"
 #include "v4r/detection/symmetry.hpp"
 #include "v4r/io/frame_source.hpp"
 #include "v4r/model/cao_reader.hpp"
 
-// Counting global allocator (as in the pipeline's cycle test).
+// Counting global allocator (as in the pipeline's cycle test), shared by the binary's tests.
 #pragma GCC diagnostic ignored "-Wmismatched-new-delete"
+namespace alloc_count {
+std::atomic<bool> counting{false};
+std::atomic<long> allocations{0};
+}  // namespace alloc_count
 namespace {
-std::atomic<bool> g_counting{false};
-std::atomic<long> g_allocations{0};
+std::atomic<bool>& g_counting = alloc_count::counting;
+std::atomic<long>& g_allocations = alloc_count::allocations;
 }  // namespace
 void* operator new(std::size_t n) {
   if (g_counting.load(std::memory_order_relaxed)) g_allocations.fetch_add(1, std::memory_order_relaxed);

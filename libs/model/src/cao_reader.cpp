@@ -275,6 +275,29 @@ class CaoFileParser {
   }
 
   // ---- attributes -----------------------------------------------------------------------------
+  /// Parses "R,G,B" (three numbers in [0, 1]) starting at `column`; an error points at the
+  /// component at fault.
+  Expected<Eigen::Vector3f> colour_value(const TextLine& l, int column, std::string_view key, std::string_view value) const {
+    Eigen::Vector3f rgb;
+    std::size_t start = 0;
+    for (int c = 0; c < 3; ++c) {
+      const std::size_t comma = value.find(',', start);
+      const bool last = c == 2;
+      if (!last && comma == std::string_view::npos)
+        return error(l, column, fmt::format("{} needs 3 values R,G,B in 0..1 (e.g. {}=0.2,0.6,0.1), found '{}'", key, key, value));
+      if (last && comma != std::string_view::npos)
+        return error(l, column + static_cast<int>(comma), fmt::format("{} needs 3 values R,G,B, found more in '{}'", key, value));
+      const std::string_view part = value.substr(start, last ? std::string_view::npos : comma - start);
+      double v = 0.0;
+      if (to_double(part, v) != NumError::kNone || !(v >= 0.0 && v <= 1.0))
+        return error(l, column + static_cast<int>(start),
+                     fmt::format("{}: component {} must be a number in 0..1, found '{}'", key, "RGB"[c], part));
+      rgb[c] = static_cast<float>(v);
+      start = comma + 1;
+    }
+    return rgb;
+  }
+
   /// Parses tokens[first..] as key=value attributes; `entry` names the record for messages.
   Expected<Attributes> attributes(const TextLine& l, std::size_t first, std::string_view entry) const {
     Attributes attr;
@@ -302,6 +325,10 @@ class CaoFileParser {
       if (value.empty()) return error(l, value_column, fmt::format("attribute '{}' has no value", key));
       if (key == "name") {
         attr.name = std::string(value);
+      } else if (key == "colour" || key == "color") {
+        auto c = colour_value(l, value_column, key, value);
+        if (!c) return c.error();
+        attr.colour = *c;
       } else if (key == "useLod") {
         if (value != "true" && value != "false" && value != "1" && value != "0")
           return error(l, value_column, fmt::format("useLod must be true or false, found '{}'", value));

@@ -212,6 +212,23 @@ TEST(CaoReader, FacesFromLinesAndNamedLines) {
   }
 }
 
+TEST(CaoReader, FaceColourAttribute) {
+  // The paper's sponge: one face with a colour (RGB in 0..1), quoted or not, British or US key.
+  const char* text =
+      "V1\n4\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n0\n0\n2\n"
+      "4 0 1 2 3 name=top colour=0.2,0.6,0.1\n"
+      "3 0 1 2 color=\"1,0.5,0\"\n";
+  auto m = parse_cao(text, "sponge.cao");
+  ASSERT_TRUE(m) << error_text(m);
+  ASSERT_EQ(m->faces().size(), 2u);
+  ASSERT_TRUE(m->faces()[0].attr.colour.has_value());
+  EXPECT_TRUE(m->faces()[0].attr.colour->isApprox(Eigen::Vector3f(0.2f, 0.6f, 0.1f)));
+  EXPECT_EQ(m->faces()[0].attr.name, "top");
+  ASSERT_TRUE(m->faces()[1].attr.colour.has_value());
+  EXPECT_TRUE(m->faces()[1].attr.colour->isApprox(Eigen::Vector3f(1.0f, 0.5f, 0.0f)));
+  EXPECT_FALSE(m->lines()[0].attr.colour.has_value());
+}
+
 TEST(CaoReader, FaceFromLinesFollowsTheListedDirection) {
   // Same square, lines listed clockwise: the loop, hence the normal, flips.
   const char* text = "4\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n4\n0 1\n1 2\n2 3\n3 0\n1\n4 3 2 1 0\n0\n";
@@ -555,6 +572,10 @@ std::vector<BadCase> bad_cases() {
       {"AttributeWithoutKey", kPts + "1\n0 1 =edge\n0\n0\n", 6, 5, "the key must be a name"},
       {"AttributeWithoutValue", kPts + "1\n0 1 name=\n0\n0\n", 6, 10, "attribute 'name' has no value"},
       {"UnterminatedQuotedValue", kPts + "1\n0 1 name=\"a b\n0\n0\n", 6, 10, "unterminated quoted value"},
+      {"ColourWithTwoValues", kSq + "0\n0\n1\n4 0 1 2 3 colour=0.2,0.6\n", 9, 18, "colour needs 3 values R,G,B"},
+      {"ColourWithFourValues", kSq + "0\n0\n1\n4 0 1 2 3 colour=0.2,0.6,0.1,1\n", 9, 29, "found more in"},
+      {"ColourOutOfRange", kSq + "0\n0\n1\n4 0 1 2 3 colour=0.2,1.5,0.1\n", 9, 22, "component G must be a number in 0..1, found '1.5'"},
+      {"ColourNotANumber", kSq + "0\n0\n1\n4 0 1 2 3 color=0.2,0.6,green\n", 9, 25, "component B must be a number in 0..1, found 'green'"},
       {"BadUseLod", kPts + "1\n0 1 useLod=maybe\n0\n0\n", 6, 12, "useLod must be true or false"},
       {"BadThreshold", kPts + "1\n0 1 minLineLengthThreshold=-1\n0\n0\n", 6, 28, "must be a finite number >= 0"},
       {"GarbageAfterLastSection", kPts + "0\n0\n0\n0\n0\nhello world\n", 10, 1, "unexpected 'hello' after the last section"},

@@ -259,6 +259,40 @@ std::string ship_section_cao() {
 )CAO";
 }
 
+std::string sponge_cao() {
+  return R"CAO(V1
+# A green household sponge as a box (the V4R paper's grasping example): 0.11 x 0.07 x 0.045 m
+# (x, y, z), origin at its centre. Every face carries colour=R,G,B (0..1), which the detector's
+# colour stage searches at 1/4 resolution before its edge templates (README, "Colour regions").
+# 3D points
+8
+-0.055 -0.035 -0.0225   # 0
+ 0.055 -0.035 -0.0225   # 1
+ 0.055  0.035 -0.0225   # 2
+-0.055  0.035 -0.0225   # 3
+-0.055 -0.035  0.0225   # 4
+ 0.055 -0.035  0.0225   # 5
+ 0.055  0.035  0.0225   # 6
+-0.055  0.035  0.0225   # 7
+# 3D lines
+0
+# Faces from 3D lines
+0
+# Faces from 3D points
+6
+4 0 3 2 1 name=bottom colour=0.2,0.6,0.1
+4 4 5 6 7 name=top colour=0.2,0.6,0.1
+4 0 1 5 4 name=front colour=0.2,0.6,0.1
+4 2 3 7 6 name=back colour=0.2,0.6,0.1
+4 1 2 6 5 name=right colour=0.2,0.6,0.1
+4 3 0 4 7 name=left colour=0.2,0.6,0.1
+# 3D cylinders
+0
+# 3D circles
+0
+)CAO";
+}
+
 geometry::PinholeCamera default_camera() {
   geometry::PinholeCamera cam;
   cam.width = 640;

@@ -6,6 +6,7 @@
 #include <span>
 #include <vector>
 
+#include "v4r/detection/colour_regions.hpp"
 #include "v4r/detection/detector_params.hpp"
 #include "v4r/detection/edge_alignment.hpp"
 #include "v4r/detection/gradient_pyramid.hpp"
@@ -35,7 +36,10 @@ struct DetectionResult {
   int hypotheses = 0;         ///< written to `out`, verified first, then by score; distinct (1 cm / 2 degrees apart)
   int verified = 0;           ///< of which verified
   int coarse_candidates = 0;  ///< coarse matches taken to the fine level
-  double gradient_ms = 0.0, search_ms = 0.0, refine_ms = 0.0, total_ms = 0.0;
+  /// Regions of the model's colour the search was restricted to; -1: no colour stage (the model
+  /// has no face colour, a grey image, or detect.colour.enabled off). 0: nothing searched.
+  int colour_regions = -1;
+  double colour_ms = 0.0, gradient_ms = 0.0, search_ms = 0.0, refine_ms = 0.0, total_ms = 0.0;
 };
 
 /// \brief Finds a CAD-modelled object in an image without a prior pose (issue 10).
@@ -46,6 +50,12 @@ struct DetectionResult {
 /// templates scored around them at 1/2 resolution; the best distinct hypotheses turned into poses
 /// (template view moved to the matched pixel), refined by a 6-DoF edge alignment and verified by
 /// the edge test (share of the projected model's edge samples with a matching gradient).
+///
+/// When the model's faces carry a colour (dominant_face_colour) and detect.colour.enabled, a
+/// colour image is first searched for regions of that colour at 1/4 resolution
+/// (ColourRegions); coarse templates are then scored only where their coloured footprint holds a
+/// region of matching area, and an image without such a region gives no hypothesis at once
+/// (before its gradients are computed).
 ///
 /// Use in the vision cycle:
 /// \code
@@ -66,7 +76,7 @@ class Detector {
   Detector(std::shared_ptr<const model::Model> model, std::shared_ptr<const TemplateSet> templates,
            const geometry::PinholeCamera& cam, const DetectorParams& p);
 
-  /// Searches the whole image; writes up to out.size() hypotheses (at most
+  /// Searches the whole image (or its colour regions); writes up to out.size() hypotheses (at most
   /// detect.search.max_hypotheses), sorted by verification score (verified ones first).
   DetectionResult detect(const image::ColourView& bgr, std::span<Hypothesis> out);
   DetectionResult detect(const image::ImageView& grey, std::span<Hypothesis> out);
@@ -83,6 +93,8 @@ class Detector {
   /// The gradients of the last image (for display and diagnosis).
   [[nodiscard]] const GradientPyramid& gradients() const { return pyramid_; }
   [[nodiscard]] const TemplateSet& templates() const { return *templates_; }
+  /// The colour stage, or nullptr when the model has no face colour or it is disabled.
+  [[nodiscard]] const ColourRegions* colour_regions() const { return colour_.get(); }
 
  private:
   struct Candidate {
@@ -91,7 +103,13 @@ class Detector {
     std::int16_t x = 0, y = 0;
   };
   DetectionResult run(std::span<Hypothesis> out);
+  /// Full-resolution box of the coarse templates placed over the colour regions (their anchor
+  /// windows plus their extent grown by 15 %), grown by detect.colour.roi_margin.
+  PixelBox colour_roi() const;
   void coarse_search();
+  /// Scores coarse template k at the anchors (2i, 2j), i in [ilo, ihi], j in [jlo, jhi] (already
+  /// inside the level) and keeps its best as a candidate.
+  void scan_coarse(std::size_t k, int ilo, int jlo, int ihi, int jhi, int& worst);
   void fine_search();
   /// Best fine score (x1000 of the best possible) of a view around 1/2-resolution pixel (cx, cy)
   /// within detect.search.fine_window, and where; -1 when the template does not fit.
@@ -103,6 +121,8 @@ class Detector {
   DetectorParams p_;
   GradientPyramid pyramid_;
   EdgeAligner aligner_;
+  std::unique_ptr<ColourRegions> colour_;  // null: no colour stage
+  bool use_colour_ = false;                // this frame's search is restricted to colour_'s regions
   std::vector<std::uint8_t> acc_;         // coarse accumulator, lin_width x lin_height
   std::vector<Candidate> coarse_;         // top coarse candidates (size <= coarse_candidates)
   std::vector<Candidate> fine_;           // fine candidates

@@ -62,12 +62,32 @@ struct VerifyParams {
   double accept_score = 0.75;       ///< share of samples matched for a verified pose
 };
 
+/// \brief The colour stage (the paper's sponge): used when the model's faces carry a colour
+/// (.cao `colour=R,G,B`, or `--colour`) and the image is in colour.
+struct ColourParams {
+  bool enabled = true;          ///< search only around regions of the model's colour
+  double max_distance = 0.06;   ///< chromaticity (normalised r, g) distance of a matching pixel
+  double min_brightness = 25.0; ///< grey levels: darker 4x4 blocks (mean of R, G, B) carry no chromaticity
+  double min_area_ratio = 0.4;  ///< a region's area over a template's coloured area, at least (occlusion)
+  double max_area_ratio = 1.6;  ///< ... at most (blur, shadows of the same colour)
+  int min_region_px = 4;        ///< px at 1/4 resolution: smaller regions are noise
+  int margin = 3;               ///< px at 1/4 resolution: a template's coloured footprint may miss a region by this
+  int max_regions = 8;          ///< largest plausible regions searched per frame
+  /// px (full resolution): gradients are computed only in the box of the templates placed over the
+  /// regions (each grown by 15 %, for the fine level's neighbours), grown by this (refinement)
+  int roi_margin = 32;
+  int coarse_candidates = 100;  ///< as detect.search.coarse_candidates, when the colour regions are searched
+  int fine_expand = 24;         ///< as detect.search.fine_expand, ...
+  int max_hypotheses = 6;       ///< as detect.search.max_hypotheses (at most that), ...
+};
+
 /// \brief All parameters of the detector.
 struct DetectorParams {
   ViewRange views;
   TemplateParams templates;
   SearchParams search;
   VerifyParams verify;
+  ColourParams colour;
 };
 
 /// The view range with automatic distances filled in for a model (`radius`: of its bounding

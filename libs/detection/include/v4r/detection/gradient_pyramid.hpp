@@ -37,6 +37,12 @@ struct OrientationLevel {
   int lin_width = 0, lin_height = 0;
 };
 
+/// \brief A rectangle of full-resolution pixels [x0, x1) x [y0, y1).
+struct PixelBox {
+  int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+  [[nodiscard]] bool empty() const { return x1 <= x0 || y1 <= y0; }
+};
+
 /// \brief The image side of detection, computed once per frame into buffers sized at
 /// construction (no allocation per frame): Sobel gradients at full resolution (of the channel
 /// with the largest gradient for colour input) for refinement and verification, and orientation
@@ -49,6 +55,9 @@ class GradientPyramid {
   /// grey levels per pixel. Returns false (and computes nothing) when the size differs.
   bool compute(const image::ImageView& grey, double min_gradient);
   bool compute(const image::ColourView& bgr, double min_gradient);
+  /// The same inside `roi` only (widened to multiples of 4 and clipped to the image); every
+  /// gradient, orientation and response outside it is 0 (the colour stage's windows).
+  bool compute(const image::ColourView& bgr, double min_gradient, PixelBox roi);
 
   [[nodiscard]] int width() const { return width_; }
   [[nodiscard]] int height() const { return height_; }
@@ -59,8 +68,10 @@ class GradientPyramid {
   [[nodiscard]] const OrientationLevel& coarse() const { return coarse_; }  ///< 1/4 resolution
 
  private:
-  bool compute_from(const std::uint8_t* data, int stride, int channels, double min_gradient);
-  void orientations(OrientationLevel& level, int channels, double min_gradient, bool linear);
+  bool compute_from(const std::uint8_t* data, int stride, int channels, double min_gradient, PixelBox roi);
+  /// Orientations, spread and responses of `level` inside `b` (level pixels).
+  void orientations(OrientationLevel& level, int channels, double min_gradient, bool linear, PixelBox b);
+  void clear();  // zeroes every gradient, orientation and response
 
   int width_, height_;
   std::vector<std::int16_t> gx_, gy_;

@@ -87,6 +87,7 @@ class Model {
 
  private:
   friend class ModelBuilder;
+  friend Model with_face_colour(const Model& m, const Eigen::Vector3f& rgb);
   std::string name_;
   std::vector<Junction> junctions_;
   std::vector<LineEdge> lines_;

@@ -187,7 +187,8 @@ struct TrajectorySpec {
 std::vector<geometry::SE3> make_trajectory(const TrajectorySpec& spec);
 
 /// Built-in test objects, as `.cao` text (so they go through the same reader as user models).
-/// The same texts are in data/box.cao, data/ship_mockup.cao, data/flange.cao and data/ship_section.cao.
+/// The same texts are in data/box.cao, data/ship_mockup.cao, data/flange.cao, data/ship_section.cao
+/// and data/sponge.cao.
 std::string box_cao();  ///< 0.20 x 0.15 x 0.10 m box (x, y, z), origin at its centre
 /// Welded steel mockup: base plate 0.40 x 0.30 x 0.02 m with a longitudinal and a transverse
 /// wall; origin at the centre of the plate's top face, z up.
@@ -199,6 +200,9 @@ std::string flange_cao();
 /// transverse frames between them (27 edges visible in the standard views); origin and axes as
 /// the mockup's.
 std::string ship_section_cao();
+/// The paper's green household sponge as a box, 0.11 x 0.07 x 0.045 m (x, y, z), origin at its
+/// centre, every face `colour=0.2,0.6,0.1` (the detector's colour stage); as data/sponge.cao.
+std::string sponge_cao();
 
 /// A default 640x480 camera (f = 600 px, principal point at the centre, mild distortion).
 geometry::PinholeCamera default_camera();
