@@ -538,3 +538,46 @@ TEST(PoseFilter, AdaptiveNoiseHoldsARestingObjectStillAndFollowsAJumpAtOnce) {
   EXPECT_DOUBLE_EQ(f.noise_scale(), 1.0);
   EXPECT_GT(f.pose().translation().x(), 0.004);
 }
+
+// restore_noise() puts back at once what the reduced time updates left out (the covariance of a
+// full-noise time update) and the full scale; velocity_chi2() is small at rest and large for a
+// steady motion the plain filter has measured.
+TEST(PoseFilter, RestoreNoiseAndVelocityChi2) {
+  PoseFilterParams p;
+  p.adapt_noise = true;
+  PoseFilter f(p), full(PoseFilterParams{});
+  const SE3 truth(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.0, 0.0, 0.5));
+  Matrix6d R = Matrix6d::Zero();
+  R.diagonal() << 1e-8, 1e-8, 4e-8, 1e-6, 1e-6, 1e-6;
+  f.reset(truth, R);
+  full.reset(truth, R);
+  for (int k = 0; k < 30; ++k) {
+    f.predict(1.0 / 30.0);
+    f.update(truth, R);
+    full.predict(1.0 / 30.0);
+    full.update(truth, R);
+  }
+  ASSERT_LT(f.noise_scale(), 1e-3);
+  EXPECT_LT(full.velocity_chi2(), 1e-6);  // exact measurements at rest: no velocity
+  f.predict(1.0 / 30.0);
+  const Matrix6d reduced = f.pose_covariance();
+  const double scale = f.noise_scale();  // the scale that time update used
+  f.restore_noise();
+  EXPECT_DOUBLE_EQ(f.noise_scale(), 1.0);
+  // The restored covariance is that of the same time update at full noise.
+  const Matrix6d expected = reduced + (1.0 - scale) * f.process_noise(1.0 / 30.0).topLeftCorner<6, 6>();
+  EXPECT_GT(f.pose_covariance().trace(), reduced.trace());
+  EXPECT_LE((f.pose_covariance() - expected).norm(), 1e-3 * expected.norm() + 1e-12);
+  // A steady motion of 1 cm per frame (0.3 m/s): the plain filter's velocity becomes significant.
+  SE3 T = truth;
+  for (int k = 0; k < 10; ++k) {
+    T = SE3(Eigen::Quaterniond::Identity(), T.translation() + Eigen::Vector3d(0.01, 0.0, 0.0));
+    full.predict(1.0 / 30.0);
+    full.update(T, R);
+  }
+  EXPECT_GT(full.velocity_chi2(), 22.5);
+  // Without adaptation restore_noise() does nothing.
+  const Matrix12d P = full.covariance();
+  full.restore_noise();
+  EXPECT_EQ(full.covariance(), P);
+}
