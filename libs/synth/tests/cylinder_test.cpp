@@ -4,7 +4,6 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <numbers>
 #include <opencv2/imgcodecs.hpp>
@@ -266,26 +265,6 @@ TEST(Cylinder, SideIsShadedByItsNormalAndTexturedWithoutASeam) {
     cv::minMaxLoc(cv::abs(gx), nullptr, &mx);
     EXPECT_LT(mx, 8.0) << "azimuth " << az;
   }
-}
-
-TEST(Cylinder, FlangeRendersWithinTheTimeBudget) {
-  const PinholeCamera cam = default_camera();
-  const Renderer r(cam);
-  auto m = model::parse_cao(flange_cao(), "flange.cao");
-  ASSERT_TRUE(m.has_value()) << m.error().to_string();
-  TrajectorySpec spec;
-  spec.T0 = geometry::look_at(0.6, -0.6, 0.75);
-  spec.frames = 20;
-  const auto traj = make_trajectory(spec);
-  double best = 1e9;
-  for (int rep = 0; rep < 2; ++rep) {
-    const auto t0 = std::chrono::steady_clock::now();
-    for (int i = 0; i < spec.frames; ++i) (void)r.render(*m, traj[static_cast<std::size_t>(i)], i);
-    best = std::min(
-        best, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() / spec.frames);
-  }
-  ::testing::Test::RecordProperty("render_ms_per_frame_flange", std::to_string(best));
-  EXPECT_LT(best, 60.0);  // ~10 ms on an idle core; generous for shared machines
 }
 
 }  // namespace
