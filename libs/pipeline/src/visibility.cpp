@@ -209,8 +209,17 @@ void VisibilityTester::update(const model::Model& model, const geometry::SE3& T_
       }
       return in;
     };
-    v.s0 = best_start == 0 ? 0.0 : cut((best_start + 0.5) / n, (best_start - 0.5) / n);
-    v.s1 = best_start + best_len == n ? 1.0 : cut((best_start + best_len - 0.5) / n, (best_start + best_len + 0.5) / n);
+    // (Only cuts by occlusion: at the image border the run keeps its piece, as the border's own
+    // clipping below handles it.)
+    const auto in_view = [&](double s) {
+      const Eigen::Vector3d P = A + s * (B - A);
+      return P.z() > 1e-3 && cam.in_image(cam.project(P), p_.image_margin);
+    };
+    const double h0 = (best_start - 0.5) / n, h1 = (best_start + best_len + 0.5) / n;
+    v.s0 = best_start == 0 ? 0.0 : in_view(h0) ? cut((best_start + 0.5) / n, h0) : static_cast<double>(best_start) / n;
+    v.s1 = best_start + best_len == n ? 1.0
+           : in_view(h1)              ? cut((best_start + best_len - 0.5) / n, h1)
+                                      : static_cast<double>(best_start + best_len) / n;
     // Clip to the front of the camera and the image by bisection at the ends that are cut.
     const Eigen::Vector2d pa = cam.project(A + v.s0 * (B - A));
     const Eigen::Vector2d pb = cam.project(A + v.s1 * (B - A));
