@@ -474,20 +474,11 @@ void LineTracker::fit_pool(int pool_size, int valid_rows, LineMeasurement& m) {
 
   // 5. Measurement in image coordinates.
   const double norm = std::sqrt(1.0 + final_fit.s * final_fit.s);
-  double sq = 0.0, width_sum = 0.0;
+  double sq = 0.0;
   for (int k = 0; k < count; ++k) {
     const Edgel& e = edgels_[inlier_idx_[k]];
     const double dist = (e.u - final_fit.u0 - final_fit.s * e.v) / norm;
     sq += dist * dist;
-    // Width of the gradient profile: integral over peak, on the run that keeps a quarter of it.
-    const float* g = &grad_[static_cast<std::size_t>(e.row) * static_cast<std::size_t>(cols_)];
-    const float peak = static_cast<float>(e.sign) * g[e.col];
-    float area = peak;
-    for (int c = e.col - 1; c >= 0 && static_cast<float>(e.sign) * g[c] >= 0.25f * peak; --c)
-      area += static_cast<float>(e.sign) * g[c];
-    for (int c = e.col + 1; c < cols_ && static_cast<float>(e.sign) * g[c] >= 0.25f * peak; ++c)
-      area += static_cast<float>(e.sign) * g[c];
-    width_sum += peak > 0.0f ? static_cast<double>(area / peak) : 0.0;
     last_inliers_.push_back(row_centre_[e.row] + static_cast<double>(e.u) * n_);
   }
   const double u_first = final_fit.u0 + final_fit.s * row_v_[0];
@@ -498,7 +489,6 @@ void LineTracker::fit_pool(int pool_size, int valid_rows, LineMeasurement& m) {
   m.inliers = count;
   m.inlier_ratio = static_cast<double>(count) / valid_rows;
   m.rms_px = std::sqrt(sq / count);
-  m.edge_width_px = width_sum / count;
   m.polarity = best_sign;  // all inliers share it
   m.found = count >= kMinInliers && m.inlier_ratio >= p_.min_inlier_ratio && std::abs(final_fit.s) <= tan_max;
 }

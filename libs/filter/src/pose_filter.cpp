@@ -104,21 +104,6 @@ void PoseFilter::predict(double dt) {
   symmetrise(P_);
 }
 
-double PoseFilter::velocity_chi2() const {
-  if (!initialised_) return kInvalidChi2;
-  const Eigen::LLT<Matrix6d> llt(P_.bottomRightCorner<6, 6>());
-  if (llt.info() != Eigen::Success) return kInvalidChi2;
-  const double chi2 = vel_.dot(llt.solve(vel_));
-  return std::isfinite(chi2) && chi2 >= 0.0 ? chi2 : kInvalidChi2;
-}
-
-void PoseFilter::restore_noise() {
-  if (!p_.adapt_noise || !initialised_) return;
-  P_ += last_q_;
-  last_q_.setZero();
-  noise_scale_ = 1.0;
-}
-
 double PoseFilter::innovation_chi2(const SE3& T_meas, const Matrix6d& cov) const {
   if (!initialised_ || !finite(T_meas) || !cov.allFinite()) return kInvalidChi2;
   const Vector6d y = (T_meas * T_.inverse()).log();

@@ -117,10 +117,6 @@ void LineMeasurement::observations(const scene::View& view, std::uint16_t view_i
     o.xn1 = f.line_n1;
     o.xn2 = f.line_n2;
     o.sigma_px = f.sigma_px > 0.0 ? f.sigma_px : p_.line_sigma_px;
-    // A blurred edge (wider than a sharp one) lies somewhere along its smear: a share of the
-    // excess width joins the sigma.
-    const double blur = p_.blur_sigma_share * std::max(0.0, f.measurement.edge_width_px - p_.sharp_edge_width_px);
-    if (blur > 0.0) o.sigma_px = std::sqrt(o.sigma_px * o.sigma_px + blur * blur);
     o.camera = camera;
     out.lines.push_back(o);
     out.line_refs.push_back(FeatureRef{view_index, static_cast<std::uint32_t>(i)});

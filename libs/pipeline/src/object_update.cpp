@@ -66,14 +66,10 @@ void update_object(scene::Object& obj, const ObjectMeasurement& m, const CyclePa
         rep.measurement_rejected = true;
       } else {
         obj.filter.update(T_meas, cov_meas + floor);
-        // The reported pose: the smoother's. While the tracking filter sees a motion, the
-        // smoother runs at full noise (no lag); a measurement it cannot explain even at full
-        // noise (a recovery, a jump) restarts it there.
-        if (p.smooth_output) {
-          if (obj.filter.velocity_chi2() > p.smoother_velocity_chi2) obj.smoother.restore_noise();
-          if (obj.smoother.update(T_meas, cov_meas + floor) > p.recovery.gate_chi2)
-            obj.smoother.reset(T_meas, cov_meas + floor);
-        }
+        // The reported pose: the smoother's. A measurement it cannot explain even at full noise
+        // (a recovery, a jump) restarts it there.
+        if (p.smooth_output && obj.smoother.update(T_meas, cov_meas + floor) > p.recovery.gate_chi2)
+          obj.smoother.reset(T_meas, cov_meas + floor);
       }
     }
   }

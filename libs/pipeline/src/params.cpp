@@ -53,9 +53,6 @@ ParamRegistry make_registry(CycleParams& p) {
   // Pose (paper 5).
   auto& s = p.solver;
   r.add("solver.line_sigma", &p.line_sigma_px, 0.01, 20.0, "px", "a-priori noise of a tracked line");
-  r.add("solver.blur_sigma_share", &p.blur_sigma_share, 0.0, 2.0, "",
-        "share of a line's blur (gradient profile width beyond solver.sharp_edge_width) added to its sigma");
-  r.add("solver.sharp_edge_width", &p.sharp_edge_width_px, 0.0, 50.0, "px", "gradient profile width of an unblurred edge");
   r.add("solver.max_iterations", &s.max_iterations, 1, 200, "", "Gauss-Newton iterations per solve");
   r.add("solver.step_tolerance", &s.step_tolerance, 0.0, 1.0, "m|rad", "convergence: smallest step");
   r.add("solver.outlier_threshold", &s.outlier_threshold, 1.0, 100.0, "sigma", "largest standardised residual kept");
@@ -120,8 +117,6 @@ ParamRegistry make_registry(CycleParams& p) {
   r.add("filter.min_noise_scale", &p.filter.min_noise_scale, 0.0, 1.0, "", "smoother: smallest scale of its process noise");
   r.add("filter.noise_decay", &p.filter.noise_decay, 0.0, 1.0, "", "smoother: noise scale factor per update that shows no motion");
   r.add("filter.motion_chi2", &p.filter.motion_chi2, 0.0, 1e6, "", "smoother: innovation chi^2 (6 dof) that shows motion: full noise at once");
-  r.add("filter.smoother_velocity_chi2", &p.smoother_velocity_chi2, 0.0, 1e6, "",
-        "smoother: full noise while the tracking filter's velocity chi^2 (6 dof) exceeds this");
   r.add("filter.frame_interval", &p.frame_interval_s, 1e-4, 10.0, "s", "time between frames without time stamps");
   // Parameters that existed without a name (issue 13: `v4r config` prints every parameter).
   // Not here: ellipse max_samples (from ellipse.samples) and solver focal_px (from the camera).

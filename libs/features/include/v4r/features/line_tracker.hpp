@@ -87,10 +87,6 @@ struct LineMeasurement {
   double inlier_ratio = 0.0;  ///< rows with an inlier edge pixel / rows sampled
   int inliers = 0;            ///< edge pixels on the fitted line
   double rms_px = 0.0;        ///< RMS distance of the inliers from the fitted line (pixels)
-  /// Mean width of the inliers' gradient profiles across the edge (pixels): the sum of the
-  /// gradient over the run of columns around the peak that keep at least a quarter of the peak,
-  /// over the peak. About 2 for a sharp edge; a blurred edge measures its blur across the edge.
-  double edge_width_px = 0.0;
   int polarity = 0;           ///< sign of the gradient across the edge (left->right in window), +1/-1
   /// True when the candidates passing the appearance check could not make a found edge (e.g.
   /// after an abrupt change of light) and the edge was searched again without the check; the

@@ -86,13 +86,6 @@ class PoseFilter {
   [[nodiscard]] Matrix12d covariance() const { return P_; }
   [[nodiscard]] geometry::Matrix6d pose_covariance() const { return P_.topLeftCorner<6, 6>(); }
   [[nodiscard]] const PoseFilterParams& params() const { return p_; }
-  /// Significance of the velocity estimate: vel^T P_vel^-1 vel (chi-square with 6 dof for an
-  /// object at rest); kInvalidChi2 before initialisation or for a singular velocity covariance.
-  [[nodiscard]] double velocity_chi2() const;
-  /// Adaptive noise: back to full process noise at once, including the part the last time
-  /// update left out (used when another filter's velocity shows that the object moves; the
-  /// next consistent updates scale it down again). No effect without adaptation.
-  void restore_noise();
   /// Current scale of the process noise (1 without adaptation).
   [[nodiscard]] double noise_scale() const { return p_.adapt_noise ? noise_scale_ : 1.0; }
   void set_params(const PoseFilterParams& p) { p_ = p; }

@@ -61,12 +61,6 @@ struct CycleParams {
   estimation::PoseSolverParams solver;
   VisibilityParams visibility;
   double line_sigma_px = 0.5;           ///< a-priori noise of a tracked line, pixels
-  /// Motion blur: an edge smeared over its path during the exposure is measured somewhere along
-  /// it. A found line whose gradient profile is wider than sharp_edge_width_px (LineMeasurement::
-  /// edge_width_px) gets blur_sigma_share of the excess added to its sigma (in quadrature; a
-  /// uniform smear of length L has a standard deviation of 0.29 L). 0: off.
-  double blur_sigma_share = 0.3;
-  double sharp_edge_width_px = 2.5;     ///< gradient profile width of an unblurred edge, pixels
   bool use_junctions = true;            ///< intersect tracked edges at model junctions (paper 3.3)
   double junction_min_angle = 0.35;     ///< radians: smallest angle between edges intersected at a junction
   double junction_sigma_scale = 1.5;    ///< junction sigma = line sigma * this / sin(angle)
@@ -107,10 +101,6 @@ struct CycleParams {
   /// measurements' noise away, a motion restores full noise at once. The tracking filter, which
   /// places the search windows, keeps the full noise. false: the measurement is reported.
   bool smooth_output = true;
-  /// The smoother's process noise is restored to full while the tracking filter's velocity is
-  /// significant (vel^T P_vel^-1 vel above this, chi-square with 6 dof): a steady motion too
-  /// slow for the smoother's own innovation test (filter.motion_chi2) is not lagged behind.
-  double smoother_velocity_chi2 = 12.6;
   double frame_interval_s = 1.0 / 30.0;  ///< seconds between frames when no time stamps are given
 };
 
