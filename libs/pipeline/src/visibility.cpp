@@ -193,33 +193,9 @@ void VisibilityTester::update(const model::Model& model, const geometry::SE3& T_
       }
     }
     if (best_len == 0) continue;
-    // Extend the run to the full edge where it reaches an end sample. Where it is cut, the cut
-    // lies between the last visible and the first hidden sample centre: found by bisection, so
-    // that no window sits on the part of an edge behind a face or another object (whose
-    // outline would be taken for the edge).
-    const auto seen = [&](double s) {
-      const Eigen::Vector3d P = A + s * (B - A);
-      return P.z() > 1e-3 && cam.in_image(cam.project(P), p_.image_margin) && !occluded(P, e.face_left, e.face_right) &&
-             !hidden_by_cylinder(P);
-    };
-    const auto cut = [&](double in, double out) {
-      for (int it = 0; it < 5; ++it) {
-        const double mid = 0.5 * (in + out);
-        (seen(mid) ? in : out) = mid;
-      }
-      return in;
-    };
-    // (Only cuts by occlusion: at the image border the run keeps its piece, as the border's own
-    // clipping below handles it.)
-    const auto in_view = [&](double s) {
-      const Eigen::Vector3d P = A + s * (B - A);
-      return P.z() > 1e-3 && cam.in_image(cam.project(P), p_.image_margin);
-    };
-    const double h0 = (best_start - 0.5) / n, h1 = (best_start + best_len + 0.5) / n;
-    v.s0 = best_start == 0 ? 0.0 : in_view(h0) ? cut((best_start + 0.5) / n, h0) : static_cast<double>(best_start) / n;
-    v.s1 = best_start + best_len == n ? 1.0
-           : in_view(h1)              ? cut((best_start + best_len - 0.5) / n, h1)
-                                      : static_cast<double>(best_start + best_len) / n;
+    // Extend the run to the full edge where it reaches an end sample.
+    v.s0 = best_start == 0 ? 0.0 : static_cast<double>(best_start) / n;
+    v.s1 = best_start + best_len == n ? 1.0 : static_cast<double>(best_start + best_len) / n;
     // Clip to the front of the camera and the image by bisection at the ends that are cut.
     const Eigen::Vector2d pa = cam.project(A + v.s0 * (B - A));
     const Eigen::Vector2d pb = cam.project(A + v.s1 * (B - A));
