@@ -37,15 +37,26 @@ bool VisibilityTester::occluded(const Eigen::Vector3d& p_cam, model::Index face_
   return false;
 }
 
-bool VisibilityTester::hidden_by_cylinder(const Eigen::Vector3d& p_cam) const {
+bool VisibilityTester::cylinder_hides(std::span<const CylinderCache> list, const Eigen::Vector3d& p_cam) {
   const double tp = p_cam.norm();
   if (tp < 1e-9) return false;
   const Eigen::Vector3d d = p_cam / tp;  // line of sight, unit
   const double t_max = tp * (1.0 - 1e-4) - 1e-5;
-  for (const auto* list : {&cylinders_, &occluder_cylinders_})
-    for (const CylinderCache& c : *list)
-      if (geometry::ray_hits_cylinder(d, t_max, c.p1, c.axis, c.radius, c.length, c.radius)) return true;
+  for (const CylinderCache& c : list)
+    if (geometry::ray_hits_cylinder(d, t_max, c.p1, c.axis, c.radius, c.length, c.radius)) return true;
   return false;
+}
+
+bool VisibilityTester::hidden_by_cylinder(const Eigen::Vector3d& p_cam) const {
+  return cylinder_hides(cylinders_, p_cam) || cylinder_hides(occluder_cylinders_, p_cam);
+}
+
+bool VisibilityTester::hidden_by_other_object(const Eigen::Vector3d& p_cam) const {
+  if (p_cam.z() <= 1e-6) return false;
+  const Eigen::Vector2d q(p_cam.x() / p_cam.z(), p_cam.y() / p_cam.z());
+  for (const FaceCache& f : occluder_faces_)
+    if (face_hides(f, occluder_poly_.data(), q, p_cam)) return true;
+  return cylinder_hides(occluder_cylinders_, p_cam);
 }
 
 void VisibilityTester::cache_face(const model::Model& model, const model::Face& f, const geometry::SE3& T_cam_obj,
@@ -193,9 +204,26 @@ void VisibilityTester::update(const model::Model& model, const geometry::SE3& T_
       }
     }
     if (best_len == 0) continue;
-    // Extend the run to the full edge where it reaches an end sample.
-    v.s0 = best_start == 0 ? 0.0 : static_cast<double>(best_start) / n;
-    v.s1 = best_start + best_len == n ? 1.0 : static_cast<double>(best_start + best_len) / n;
+    // Extend the run to the full edge where it reaches an end sample, and to the half-way point
+    // where it is cut. Where another object hides the edge, the cut is found by bisection between
+    // the last seen and the first hidden sample centre, so that no window sits on the hidden part
+    // and takes the other object's outline for the edge (objects crossing). Cuts by the object's
+    // own faces keep the half-way point: there the occluding outline is the model's own edge.
+    const auto seen = [&](double s) {
+      const Eigen::Vector3d P = A + s * (B - A);
+      return P.z() > 1e-3 && cam.in_image(cam.project(P), p_.image_margin) && !occluded(P, e.face_left, e.face_right) &&
+             !hidden_by_cylinder(P);
+    };
+    const auto cut = [&](double in, double out) {
+      if (!hidden_by_other_object(A + out * (B - A))) return 0.5 * (in + out);
+      for (int it = 0; it < 5; ++it) {
+        const double mid = 0.5 * (in + out);
+        (seen(mid) ? in : out) = mid;
+      }
+      return in;
+    };
+    v.s0 = best_start == 0 ? 0.0 : cut((best_start + 0.5) / n, (best_start - 0.5) / n);
+    v.s1 = best_start + best_len == n ? 1.0 : cut((best_start + best_len - 0.5) / n, (best_start + best_len + 0.5) / n);
     // Clip to the front of the camera and the image by bisection at the ends that are cut.
     const Eigen::Vector2d pa = cam.project(A + v.s0 * (B - A));
     const Eigen::Vector2d pb = cam.project(A + v.s1 * (B - A));

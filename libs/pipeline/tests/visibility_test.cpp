@@ -76,6 +76,11 @@ const char* kPlateAndBar = R"(V1
 0
 )";
 
+// Two boxes: the far one 0.8 m away, the near one 0.5 m away and shifted so that it covers the
+// far box's left half in the image.
+geometry::SE3 far_box_pose() { return geometry::SE3::from_rvec(Eigen::Vector3d(0.0, 0.0, 0.8), Eigen::Vector3d(0.2, 0.3, 0.0)); }
+geometry::SE3 near_box_pose() { return geometry::SE3::from_rvec(Eigen::Vector3d(-0.08, 0.0, 0.5), Eigen::Vector3d::Zero()); }
+
 struct Fixture {
   model::Model m;
   std::vector<std::uint8_t> face_vis;
@@ -205,8 +210,7 @@ TEST(Visibility, AnotherObjectInFrontHidesEdgesBehindIt) {
   // beside it keep their full length; an occluder behind the far box hides nothing.
   Fixture far(kBox);
   const model::Model near_model = parse(kBox);
-  const geometry::SE3 T_far = geometry::SE3::from_rvec(Eigen::Vector3d(0.0, 0.0, 0.8), Eigen::Vector3d(0.2, 0.3, 0.0));
-  const geometry::SE3 T_near = geometry::SE3::from_rvec(Eigen::Vector3d(-0.08, 0.0, 0.5), Eigen::Vector3d::Zero());
+  const geometry::SE3 T_far = far_box_pose(), T_near = near_box_pose();
   pipeline::VisibilityTester vt;
   vt.update(far.m, T_far, camera(), far.face_vis, far.out);
   const std::vector<pipeline::EdgeVisibility> alone = far.out;
@@ -250,4 +254,35 @@ TEST(Visibility, AnotherObjectInFrontHidesEdgesBehindIt) {
     EXPECT_DOUBLE_EQ(near.out[li].s0, near_alone[li].s0);
     EXPECT_DOUBLE_EQ(near.out[li].s1, near_alone[li].s1);
   }
+}
+
+TEST(Visibility, AnEdgeCutByAnotherObjectEndsAtTheCutNotHalfASampleBeyond) {
+  // The scene of the test above: where the near box hides an edge of the far one, the visible run
+  // ends within 1/16 of a sample piece of the cut (found by bisection), on the visible side, so no
+  // tracking window sits on the near box's outline. Without the other object, the run ends (at the
+  // far box's own faces) as before.
+  Fixture far(kBox);
+  const model::Model near_model = parse(kBox);
+  const geometry::SE3 T_far = far_box_pose(), T_near = near_box_pose();
+  pipeline::VisibilityTester vt;
+  vt.add_occluder(near_model, T_near);
+  vt.update(far.m, T_far, camera(), far.face_vis, far.out);
+  const double piece = 1.0 / pipeline::VisibilityParams{}.samples;
+  int ends = 0;
+  for (std::size_t li = 0; li < far.out.size(); ++li) {
+    const auto& v = far.out[li];
+    if (!v.visible) continue;
+    const auto e = static_cast<model::Index>(li);
+    const auto& line = far.m.lines()[li];
+    const Eigen::Vector3d A = far.m.line_point_a(e), B = far.m.line_point_b(e);
+    const auto at = [&](double s) { return T_far * (A + s * (B - A)); };
+    for (const auto& [s, dir] : {std::pair{v.s0, -1.0}, std::pair{v.s1, 1.0}}) {
+      if (s <= 0.0 || s >= 1.0) continue;
+      const Eigen::Vector3d beyond = at(s + dir * piece / 16.0);
+      if (!vt.hidden(beyond, line.face_left, line.face_right)) continue;  // cut by the image border
+      ++ends;
+      EXPECT_FALSE(vt.hidden(at(s), line.face_left, line.face_right)) << "line " << li << " s " << s;
+    }
+  }
+  EXPECT_GE(ends, 2);
 }

@@ -78,7 +78,10 @@ class VisibilityTester {
     Eigen::Vector3d p1, axis;  // camera frame; axis unit from p1 to p2
     double length = 0.0, radius = 0.0;
   };
+  /// Whether another object's geometry (add_occluder) hides the point p_cam.
+  bool hidden_by_other_object(const Eigen::Vector3d& p_cam) const;
   bool hidden_by_cylinder(const Eigen::Vector3d& p_cam) const;
+  static bool cylinder_hides(std::span<const CylinderCache> list, const Eigen::Vector3d& p_cam);
   /// Appends the model's cylinders at T_cam_obj (camera frame) to `out`.
   static void add_cylinders(const model::Model& model, const geometry::SE3& T_cam_obj, std::vector<CylinderCache>& out);
   std::vector<FaceCache> faces_;
