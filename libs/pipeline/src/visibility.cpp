@@ -214,16 +214,18 @@ void VisibilityTester::update(const model::Model& model, const geometry::SE3& T_
       return P.z() > 1e-3 && cam.in_image(cam.project(P), p_.image_margin) && !occluded(P, e.face_left, e.face_right) &&
              !hidden_by_cylinder(P);
     };
-    const auto cut = [&](double in, double out) {
-      if (!hidden_by_other_object(A + out * (B - A))) return 0.5 * (in + out);
+    const auto cut = [&](double in, double out, int k) {
+      if (!hidden_by_other_object(A + out * (B - A))) return static_cast<double>(k) / n;  // half way
       for (int it = 0; it < 5; ++it) {
         const double mid = 0.5 * (in + out);
         (seen(mid) ? in : out) = mid;
       }
       return in;
     };
-    v.s0 = best_start == 0 ? 0.0 : cut((best_start + 0.5) / n, (best_start - 0.5) / n);
-    v.s1 = best_start + best_len == n ? 1.0 : cut((best_start + best_len - 0.5) / n, (best_start + best_len + 0.5) / n);
+    v.s0 = best_start == 0 ? 0.0 : cut((best_start + 0.5) / n, (best_start - 0.5) / n, best_start);
+    v.s1 = best_start + best_len == n ? 1.0
+                                      : cut((best_start + best_len - 0.5) / n, (best_start + best_len + 0.5) / n,
+                                            best_start + best_len);
     // Clip to the front of the camera and the image by bisection at the ends that are cut.
     const Eigen::Vector2d pa = cam.project(A + v.s0 * (B - A));
     const Eigen::Vector2d pb = cam.project(A + v.s1 * (B - A));
