@@ -641,7 +641,6 @@ LineMeasurement LineTracker::track(const image::ImageView& img, const Segment2& 
     float axis[3];
     if (colour_gradient(state, axis)) {
       LineMeasurement mc;
-      last_inliers_.clear();  // (those of the failed grey fit: the colour fit's alone are its inliers)
       const int want_c = state.colour_polarity > 0 ? 1 : (state.colour_polarity < 0 ? -1 : 0);
       detect(want_c, cues, valid_rows, mc);
       if (mc.found) {

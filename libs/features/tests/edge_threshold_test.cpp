@@ -107,36 +107,5 @@ TEST(EdgeThreshold, IsoluminantColourEdgeIsFoundOnTheColourGradient) {
   EXPECT_LE(err.max, 0.5);
 }
 
-TEST(EdgeThreshold, AColourFitAfterAFailedGreyFitHandsOnOnlyItsOwnInliers) {
-  // The isoluminant edge with a short brighter stretch on one side: the grey gradient fits a
-  // line on a quarter of the rows (too few: not found), the colour gradient finds the edge. The
-  // inliers handed on (the undistorted refit uses them) must be the colour fit's alone.
-  const Bgr green{56.f, 148.f, 69.f};
-  const Bgr purple{120.f, 104.f, 128.f};
-  const Bgr bright{200.f, 184.f, 208.f};
-  LineTracker tracker;
-  int mixed = 0, colour_found = 0;
-  for (int k = 0; k < 20; ++k) {
-    const TrueLine truth{{kW / 2.0 + 0.3, kH / 2.0 - 0.2}, dir(0.3 + 0.12 * k)};
-    Canvas c(kW, kH, green);
-    c.half_plane(truth.p, truth.normal(), purple);
-    const Eigen::Vector2d side = truth.normal() * 6.0;  // the capsule's near rim on the edge
-    c.capsule(truth.p + 25.0 * truth.t + side, truth.p + 55.0 * truth.t + side, 6.0, bright);
-    const ColourFrame frame(c, 2.0, 700 + k);
-    const Segment2 pred = segment(truth.p + 2.0 * truth.normal(), truth.t, 120.0);
-    LineTrackState state;
-    const image::ColourView view = frame.colour();
-    const LineMeasurement m = tracker.track(frame.grey_view(), pred, state, &view);
-    if (!m.found || !m.colour_gradient) continue;
-    ++colour_found;
-    const Eigen::Vector2d t = (m.line.b - m.line.a).normalized(), n(-t.y(), t.x());
-    bool off = tracker.last_inliers().size() > static_cast<std::size_t>(tracker.params().rows);
-    for (const Eigen::Vector2d& e : tracker.last_inliers()) off = off || std::abs(n.dot(e - m.line.a)) > 2.0;
-    mixed += off ? 1 : 0;
-  }
-  EXPECT_GE(colour_found, 10);
-  EXPECT_EQ(mixed, 0);
-}
-
 }  // namespace
 }  // namespace v4r::features
