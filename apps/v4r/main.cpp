@@ -232,7 +232,7 @@ int cmd_bench(const RenderArgs& a, int repeat, double budget_ms) {
 }
 
 /// `v4r bench --cameras N --objects M`: the cost of a scene against one camera and one object.
-int cmd_bench_scene(const RenderArgs& a, int repeat, double budget_ms, int cameras, int objects) {
+int cmd_bench_scene(const RenderArgs& a, int repeat, double budget_ms, int cameras, int objects, int threads) {
   auto in = model_input(a);
   if (!in) {
     fmt::print(stderr, "v4r bench: error: {}\n", in.error().to_string());
@@ -249,6 +249,7 @@ int cmd_bench_scene(const RenderArgs& a, int repeat, double budget_ms, int camer
   sc.objects = objects;
   sc.repeat = repeat;
   sc.budget_ms = budget_ms;
+  sc.threads = threads;
   return app::run_scene_cost(sc);
 }
 
@@ -416,6 +417,11 @@ int main(int argc, char** argv) {
     bench->add_option("--objects", bench_objects, "Copies of the model side by side: the cost against one object alone")
         ->check(CLI::Range(1, 4))
         ->capture_default_str();
+    int bench_threads = 1;
+    bench->add_option("--threads", bench_threads,
+                      "With --cameras/--objects: also run the cycle over all of them on this many threads (cycle.threads)")
+        ->check(CLI::Range(1, 16))
+        ->capture_default_str();
 
     std::string cfg_in;
     std::vector<std::string> cfg_sets;
@@ -554,7 +560,8 @@ int main(int argc, char** argv) {
     if (*render) return cmd_render(ra);
     if (*demo) return cmd_demo(demo_out);
     if (*bench) {
-      if (bench_cameras > 1 || bench_objects > 1) return cmd_bench_scene(ba, repeat, bench_budget, bench_cameras, bench_objects);
+      if (bench_cameras > 1 || bench_objects > 1)
+        return cmd_bench_scene(ba, repeat, bench_budget, bench_cameras, bench_objects, bench_threads);
       return cmd_bench(ba, repeat, bench_budget);
     }
     if (*inspect) {

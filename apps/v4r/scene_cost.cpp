@@ -58,12 +58,14 @@ struct RunResult {
 
 /// The cycle over the cameras `cams` and objects `objs` (indices into the rig and the copies).
 RunResult run(const SceneCostInput& in, const std::vector<int>& cams, const std::vector<int>& objs,
-              const std::vector<std::vector<cv::Mat>>& frames, const std::vector<std::vector<geometry::SE3>>& T_ref_obj) {
+              const std::vector<std::vector<cv::Mat>>& frames, const std::vector<std::vector<geometry::SE3>>& T_ref_obj,
+              int threads = 1) {
   std::vector<double> ms;
   std::vector<geometry::SE3> est;
   for (int r = 0; r < in.repeat; ++r) {
     pipeline::CycleParams params;
     params.budget.cycle_ms = in.budget_ms;
+    params.threads = threads;
     pipeline::VisionCycle cycle(params);
     scene::Scene sc;
     for (const int c : cams) sc.add_camera(scene::Camera{fmt::format("cam{}", c), in.camera, rig_camera(c)});
@@ -133,7 +135,7 @@ int run_scene_cost(const SceneCostInput& in) {
   const RunResult all = run(in, cams, objs, frames, T_ref_obj);
   // One camera and one object: each camera alone (with object 0) and each object alone (in
   // camera 0), averaged: "one" is a typical single camera or object of this arrangement.
-  fmt::print("v4r bench: {} camera(s) x {} object(s), {} frames x {} runs (one thread)\n", n_cam, n_obj,
+  fmt::print("v4r bench: {} camera(s) x {} object(s), {} frames x {} runs (one thread first)\n", n_cam, n_obj,
              in.trajectory.size(), in.repeat);
   double one_ms = 0.0;
   int ones = 0;
@@ -154,6 +156,15 @@ int run_scene_cost(const SceneCostInput& in) {
   fmt::print("object 0 with all: mean {:.2f} mm {:.2f} deg, {}/{} frames within 5 cm / 5 deg (camera 0 alone: {:.2f} mm)\n",
              all.object0.mean_translation_m * 1e3, all.object0.mean_rotation_deg, all.object0.successes,
              all.object0.frames, first.object0.mean_translation_m * 1e3);
+  if (in.threads > 1) {
+    // What more cores buy: the same cycle over all cameras and objects on cycle.threads threads.
+    const RunResult par = run(in, cams, objs, frames, T_ref_obj, in.threads);
+    fmt::print("cycle (median) on {} threads: {:.3f} ms for all ({:.2f}x the one-thread cycle); object 0 mean {:.2f} mm "
+               "({} as on one thread)\n",
+               in.threads, par.median_ms, all.median_ms > 0.0 ? par.median_ms / all.median_ms : 0.0,
+               par.object0.mean_translation_m * 1e3,
+               par.object0.mean_translation_m == all.object0.mean_translation_m ? "the same" : "NOT the same");
+  }
   return 0;
 }
 

@@ -21,6 +21,7 @@ struct SceneCostInput {
   int objects = 1;  ///< 1..4 copies of the model side by side (a row of two, a 2x2 grid)
   int repeat = 5;
   double budget_ms = 0.0;
+  int threads = 1;  ///< > 1: the cycle over all is also run on this many threads (cycle.threads)
 };
 
 /// Renders every camera's images of the arrangement and runs one vision cycle per frame over

@@ -121,7 +121,10 @@ LineTracker::LineTracker(const LineTrackerParams& params) : p_(sanitize(params))
   pool_.assign(edgels_.size(), 0);
   pool_cum_.assign(edgels_.size(), 0.0f);
   inlier_idx_.assign(rows, 0);
-  last_inliers_.reserve(rows);
+  // A failed grey fit's inliers stay when the colour gradient is tried after it (they anchor the
+  // colour fit's refit on grey objects, where the colour gradient is mostly chroma noise): room
+  // for both, so that no frame allocates.
+  last_inliers_.reserve(2 * rows);
 }
 
 std::uint32_t LineTracker::next_random() {

@@ -80,6 +80,8 @@ ParamRegistry make_registry(CycleParams& p) {
   r.add("cycle.refine_passes", &p.refine_passes, 1, 5, "", "track+solve passes per frame");
   r.add("cycle.joint_solve", &p.joint_solve,
         "solve an object's pose from the observations of all cameras in one adjustment (false: per view, then fused)");
+  r.add("cycle.threads", &p.threads, 1, 16, "",
+        "threads of the vision cycle: objects (or one object's camera views) measured in parallel");
   r.add("cycle.ambiguity_angle", &p.ambiguity_angle, 0.0, 1.0, "rad", "edges closer than this in direction count as parallel");
   r.add("cycle.ambiguity_margin", &p.ambiguity_margin_px, -100.0, 100.0, "px", "parallel edges nearer than half_width + this are side by side");
   r.add("cycle.track_side_by_side", &p.track_side_by_side,

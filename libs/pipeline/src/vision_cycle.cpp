@@ -13,12 +13,12 @@ VisionCycle::VisionCycle(const CycleParams& params, Clock::time_point (*now)())
     : p_(params),
       now_(now),
       predictor_(params),
-      lines_(params),
-      arcs_(params),
-      junctions_(params),
-      solver_(params),
-      evidence_(params.status.evidence),
-      budget_(params.budget) {}
+      budget_(params.budget) {
+  const auto n = static_cast<std::size_t>(std::clamp(params.threads, 1, 16));
+  for (std::size_t k = 0; k < n; ++k) units_.push_back(std::make_unique<ObjectMeasurer>(params, now));
+  for (const auto& u : units_) unit_ptrs_.push_back(u.get());
+  if (n > 1) team_ = std::make_unique<ThreadTeam>(n);
+}
 
 void VisionCycle::set_params(const CycleParams& params) {
   const std::int64_t frame = frame_;
@@ -34,32 +34,16 @@ const std::vector<Eigen::Vector2d>& VisionCycle::edgels(std::size_t camera) cons
 }
 
 void VisionCycle::prepare(const scene::Scene& scene) {
-  // Buffers for the largest object seen by every camera: observations of one solve come from all
-  // views of one object.
-  std::size_t lines = 0, junctions = 0, arcs = 0, total = 0, views = 1;
-  for (const scene::Object& o : scene.objects()) {
-    const std::size_t nv = std::max<std::size_t>(1, o.views.size());
-    views = std::max(views, nv);
-    lines = std::max(lines, o.model->lines().size() * nv);
-    junctions = std::max(junctions, o.model->junctions().size() * nv);
-    arcs = std::max(arcs, o.model->arcs().size() * nv);
-    total += (o.model->lines().size() + o.model->arcs().size()) * o.views.size();
-  }
-  const std::size_t circle_points = arcs * scene::ArcFeature::kMaxSamples;
-  if (buffer_.lines.capacity() < lines || buffer_.points.capacity() < junctions ||
-      buffer_.circles.capacity() < circle_points || buffer_.cameras.capacity() < views) {
-    buffer_.reserve(views, lines, junctions, circle_points);
-    solver_.reserve(junctions, lines, circle_points);
-  }
-  if (solves_.capacity() < views) solves_.reserve(views);
-  arcs_.reserve();
+  std::size_t total = 0;
+  for (const scene::Object& o : scene.objects()) total += (o.model->lines().size() + o.model->arcs().size()) * o.views.size();
+  for (const auto& u : units_) u->reserve(scene);
   budget_.reserve(total);
+  if (measured_.capacity() < scene.objects().size()) measured_.reserve(scene.objects().size());
   if (edgels_.size() < scene.cameras().size()) edgels_.resize(scene.cameras().size());
   const std::size_t per_camera =
       std::max<std::size_t>(1, total) * static_cast<std::size_t>(p_.track.rows + 2 * scene::ArcFeature::kMaxSamples);
   for (auto& e : edgels_)
     if (e.capacity() < per_camera) e.reserve(per_camera);
-  lines_.reserve(static_cast<std::size_t>(std::max({p_.track.rows, p_.budget.reduced_rows, 64})));
   if (report_.objects.size() != scene.objects().size()) report_.objects.resize(scene.objects().size());
 }
 
@@ -144,153 +128,19 @@ void VisionCycle::predict_views(scene::Scene& scene, std::span<const CameraImage
   }
 }
 
-ObjectSolve VisionCycle::measure_views(const scene::Scene& scene, scene::Object& obj,
-                                       std::span<const CameraImage> images, std::size_t first, std::size_t last,
-                                       ObjectReport& rep) {
-  const auto has_image = [&](const scene::View& v) {
-    return v.camera < images.size() && !images[v.camera].grey.empty();
-  };
-  const SolvePrior prior{obj.confirmed, obj.T_pred, obj.covariance_pred};
-  ObjectSolve best;  // the last solve that measured the pose
-  estimation::PoseResult last_result;
-  geometry::SE3 T = obj.T_pred;
-  int found = 0;
-  ctx_.search_level = rep.search_level;
-  const int passes = std::max(1, p_.refine_passes);
-  for (int pass = 0; pass < passes; ++pass) {
-    ctx_.first_pass = pass == 0;
-    ctx_.refound = 0;
-    const auto ta = now_();
-    found = 0;
-    for (std::size_t vi = first; vi < last; ++vi) {
-      scene::View& view = obj.views[vi];
-      if (!has_image(view)) continue;
-      const scene::Camera& cam = scene.cameras()[view.camera];
-      ctx_.edgels = view.camera < edgels_.size() ? &edgels_[view.camera] : nullptr;
-      found += lines_.track(view, cam, images[view.camera], ctx_);
-      found += arcs_.track(*obj.model, view, cam, images[view.camera], ctx_);
-    }
-    const auto tb = now_();
-    report_.track_ms += ms_between(ta, tb);
-    // A later pass whose re-measured features all failed again adds nothing: the last solve stands.
-    if (pass > 0 && ctx_.refound == 0) break;
-
-    buffer_.clear();
-    for (std::size_t vi = first; vi < last; ++vi) {
-      const scene::View& view = obj.views[vi];
-      if (!has_image(view) || buffer_.cameras.size() >= estimation::kMaxSolveCameras) continue;
-      const scene::Camera& cam = scene.cameras()[view.camera];
-      const auto k = static_cast<std::uint8_t>(buffer_.cameras.size());
-      buffer_.cameras.push_back(estimation::SolveCamera{cam.T_ref_cam.inverse(), cam.intrinsics.focal()});
-      lines_.observations(view, static_cast<std::uint16_t>(vi), k, buffer_);
-      junctions_.observations(*obj.model, view, cam, k, buffer_);
-      arcs_.observations(*obj.model, view, cam, static_cast<std::uint16_t>(vi), k, buffer_);
-    }
-    const ObjectSolve s = solver_.solve(T, buffer_, prior);
-    last_result = s.result;
-    if (s.updated) {
-      best = s;
-      T = s.T_ref_obj;
-      for (std::size_t vi = first; vi < last; ++vi)
-        obj.views[vi].T_cam_obj = scene.cameras()[obj.views[vi].camera].T_ref_cam.inverse() * T;
-    }
-    // Rejected lines, and ellipses with most edge points rejected, are measured again.
-    for (std::size_t k = 0; k < buffer_.line_refs.size(); ++k)
-      if (!buffer_.line_inliers[k]) obj.views[buffer_.line_refs[k].view].lines[buffer_.line_refs[k].feature].retrack = true;
-    for (std::size_t k = 0, start = 0; k <= buffer_.circle_refs.size(); ++k) {
-      const auto same = [&](std::size_t a, std::size_t b) {
-        return buffer_.circle_refs[a].view == buffer_.circle_refs[b].view &&
-               buffer_.circle_refs[a].feature == buffer_.circle_refs[b].feature;
-      };
-      if (k < buffer_.circle_refs.size() && same(k, start)) continue;
-      if (k > start) {
-        int bad = 0;
-        for (std::size_t q = start; q < k; ++q) bad += buffer_.circle_inliers[q] ? 0 : 1;
-        const FeatureRef& r = buffer_.circle_refs[start];
-        if (2 * bad > static_cast<int>(k - start)) obj.views[r.view].arcs[r.feature].retrack = true;
-      }
-      start = k;
-    }
-    report_.solve_ms += ms_between(tb, now_());
-    if (!s.updated) break;
+void VisionCycle::measure_object(scene::Scene& scene, std::span<const CameraImage> images, std::size_t oi,
+                                 std::size_t unit, double stamp_s) {
+  scene::Object& obj = scene.objects()[oi];
+  ObjectReport& rep = report_.objects[oi];
+  // One object's fault (a bug, bad_alloc, an OpenCV exception) must not end the others' cycle.
+  try {
+    if (object_hook_) object_hook_(obj);
+    units_[unit]->measure(scene, obj, images, rep, stamp_s);
+  } catch (const std::exception& e) {
+    object_failed(obj, rep, e.what());
+  } catch (...) {
+    object_failed(obj, rep, "unknown exception");
   }
-
-  // Feature states after the last pass.
-  const auto settle = [](auto& f) {
-    if (f.measurement.found) {
-      f.status = scene::FeatureStatus::kFound;
-      f.frames_missing = 0;
-    } else {
-      if (f.status != scene::FeatureStatus::kNotFound) f.status = scene::FeatureStatus::kLost;
-      if (++f.frames_missing >= 2) f.track.polarity = 0;  // the background may have changed side
-    }
-  };
-  for (std::size_t vi = first; vi < last; ++vi) {
-    scene::View& view = obj.views[vi];
-    if (!has_image(view)) continue;
-    for (scene::LineFeature& f : view.lines)
-      if (f.visible && !f.ambiguous && !f.dropped) settle(f);
-    for (scene::ArcFeature& a : view.arcs)
-      if (a.visible && !a.dropped) settle(a);
-  }
-  int outliers = 0, lines_used = 0, circle_used = 0, junctions_used = 0;
-  for (std::size_t k = 0; k < buffer_.line_refs.size(); ++k) {
-    if (buffer_.line_inliers[k]) {
-      ++lines_used;
-      continue;
-    }
-    scene::LineFeature& f = obj.views[buffer_.line_refs[k].view].lines[buffer_.line_refs[k].feature];
-    f.status = scene::FeatureStatus::kOutlier;
-    f.track.polarity = 0;
-    ++outliers;
-  }
-  for (const std::uint8_t in : buffer_.circle_inliers) {
-    circle_used += in;
-    outliers += 1 - in;
-  }
-  for (const std::uint8_t in : buffer_.point_inliers) {
-    junctions_used += in;
-    outliers += 1 - in;
-  }
-  rep.features_found += found;
-  if (best.updated) {
-    rep.features_used += last_result.inliers;
-    rep.lines_used += lines_used;
-    rep.circle_points_used += circle_used;
-    rep.junctions_used += junctions_used;
-    rep.tangent_junctions += buffer_.tangent_junctions;
-    rep.outliers += outliers;
-    rep.rms_px = last_result.rms_px;
-  }
-  rep.iterations += last_result.iterations;
-  rep.prior_used = rep.prior_used || best.prior_used;
-  return best;
-}
-
-void VisionCycle::measure_object(const scene::Scene& scene, scene::Object& obj, std::span<const CameraImage> images,
-                                 ObjectReport& rep, double stamp_s) {
-  for (scene::View& view : obj.views) {
-    if (view.camera >= images.size() || images[view.camera].grey.empty()) continue;
-    for (const scene::LineFeature& f : view.lines) rep.features_visible += f.visible && !f.ambiguous && !f.dropped ? 1 : 0;
-    for (const scene::ArcFeature& a : view.arcs) rep.features_visible += a.visible && !a.dropped ? 1 : 0;
-  }
-  // One solve over every view (CycleParams::joint_solve), or one per view, fused.
-  solves_.clear();
-  if (p_.joint_solve) {
-    solves_.push_back(measure_views(scene, obj, images, 0, obj.views.size(), rep));
-  } else {
-    for (std::size_t vi = 0; vi < obj.views.size() && solves_.size() < solves_.capacity(); ++vi)
-      solves_.push_back(measure_views(scene, obj, images, vi, vi + 1, rep));
-  }
-  // Image evidence at the measured pose, per view.
-  for (scene::View& view : obj.views) {
-    view.evidence_samples = view.evidence_matched = 0;
-    if (view.camera >= images.size() || images[view.camera].grey.empty()) continue;
-    measure_view_evidence(evidence_, view, scene.cameras()[view.camera], images[view.camera]);
-  }
-  const auto tf = now_();
-  update_object(obj, combine_solves(solves_), p_, rep, stamp_s);
-  report_.solve_ms += ms_between(tf, now_());
 }
 
 void VisionCycle::object_failed(scene::Object& obj, ObjectReport& rep, const char* what) const {
@@ -348,18 +198,41 @@ const CycleReport& VisionCycle::process(scene::Scene& scene, std::span<const Cam
   ctx_.degrade_level = plan_.degrade_level;
   ctx_.samples_per_circle = plan_.samples_per_circle;
 
-  // 3. Measure every view, solve, test the evidence, filter.
-  for (std::size_t oi = 0; oi < objects.size(); ++oi) {
-    scene::Object& obj = objects[oi];
-    ObjectReport& rep = report_.objects[oi];
-    if (!scene::is_tracked(obj.status) || rep.failed) continue;
-    try {
-      if (object_hook_) object_hook_(obj);
-      measure_object(scene, obj, images, rep, stamp_s);
-    } catch (const std::exception& e) {
-      object_failed(obj, rep, e.what());
-    } catch (...) {
-      object_failed(obj, rep, "unknown exception");
+  // 3. Measure every view, solve, test the evidence, filter: with several threads, the objects
+  // in parallel (object k of this frame on thread k % threads), or the views of the one object.
+  measured_.clear();
+  for (std::size_t oi = 0; oi < objects.size(); ++oi)
+    if (scene::is_tracked(objects[oi].status) && !report_.objects[oi].failed) measured_.push_back(oi);
+  for (const auto& u : units_) u->begin_frame(ctx_);
+  const bool by_object = team_ && measured_.size() > 1;
+  units_[0]->set_view_team(team_ && !by_object ? team_.get() : nullptr, unit_ptrs_);
+  if (by_object) {
+    struct Job {
+      VisionCycle* self;
+      scene::Scene* scene;
+      std::span<const CameraImage> images;
+      double stamp_s;
+    } job{this, &scene, images, stamp_s};
+    team_->run(
+        measured_.size(),
+        [](void* arg, std::size_t task, std::size_t member) {
+          Job& j = *static_cast<Job*>(arg);
+          j.self->measure_object(*j.scene, j.images, j.self->measured_[task], member, j.stamp_s);
+        },
+        &job);
+  } else {
+    for (const std::size_t oi : measured_) measure_object(scene, images, oi, 0, stamp_s);
+  }
+  // The units' counters and edge pixels, summed.
+  for (const auto& u : units_) {
+    ctx_.samples += u->context().samples;
+    ctx_.windows += u->context().windows;
+    report_.track_ms += u->track_ms();
+    report_.solve_ms += u->solve_ms();
+    for (std::size_t c = 0; c < edgels_.size(); ++c) {
+      const auto& e = u->edgels(c);
+      const std::size_t room = edgels_[c].capacity() - edgels_[c].size();
+      edgels_[c].insert(edgels_[c].end(), e.begin(), e.begin() + static_cast<std::ptrdiff_t>(std::min(room, e.size())));
     }
   }
 

@@ -102,6 +102,10 @@ struct CycleParams {
   /// places the search windows, keeps the full noise. false: the measurement is reported.
   bool smooth_output = true;
   double frame_interval_s = 1.0 / 30.0;  ///< seconds between frames when no time stamps are given
+  /// Threads of the cycle (the calling one included): objects are measured in parallel, or the
+  /// views of an object (one per camera) when only one object is tracked. Results are the same
+  /// for any number (each object or view is measured alone); 1 measures everything in turn.
+  int threads = 1;
 };
 
 }  // namespace v4r::pipeline
