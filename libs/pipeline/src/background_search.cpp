@@ -60,11 +60,13 @@ int BackgroundSearch::apply(scene::Scene& scene) {
     result_full_ = false;
   }
   wake_.notify_all();  // the worker may wait for the result slot to take the next frame
-  if (generation != generation_) {
-    ++results_dropped_;
+  const auto objs = scene.objects();
+  // A result for the objects of an earlier search, or objects added or removed without
+  // set_search (indices may have moved): none of it is used.
+  if (generation != generation_ || objs.size() != active_.size()) {
+    results_dropped_ += std::count_if(taken_.begin(), taken_.end(), [](const Found& f) { return f.locked; });
     return 0;
   }
-  const auto objs = scene.objects();
   int applied = 0;
   for (std::size_t i = 0; i < taken_.size(); ++i) {
     const Found& f = taken_[i];

@@ -61,10 +61,23 @@ void ServiceSearch::build_loop(std::stop_token st) {
 }
 
 void ServiceSearch::before_cycle(scene::Scene& scene) {
-  if (background_) background_->apply(scene);
+  if (!background_) return;
+  // A command since the last frame may have removed or replaced objects (their indices shift):
+  // a new search first, so that the worker's result for the objects before is dropped.
+  refresh(scene);
+  background_->apply(scene);
 }
 
 void ServiceSearch::update(scene::Scene& scene, std::span<const pipeline::CameraImage> images, double stamp_s) {
+  refresh(scene);
+  if (background_) {
+    background_->update(scene, images, stamp_s);
+  } else if (search_) {
+    search_->update(scene, images, stamp_s);
+  }
+}
+
+void ServiceSearch::refresh(scene::Scene& scene) {
   const auto objs = scene.objects();
   bool changed = objs.size() != searched_.size();
   for (std::size_t i = 0; i < objs.size(); ++i) {
@@ -107,11 +120,6 @@ void ServiceSearch::update(scene::Scene& scene, std::span<const pipeline::Camera
     } else {
       search_ = std::move(search);
     }
-  }
-  if (background_) {
-    background_->update(scene, images, stamp_s);
-  } else if (search_) {
-    search_->update(scene, images, stamp_s);
   }
 }
 

@@ -275,6 +275,46 @@ TEST(BackgroundSearch, ASetPoseWhileTheWorkerSearchesWinsOverItsLateResult) {
   }
 }
 
+/// Submits a command and waits for its reply.
+std::string ask(TrackingService& service, protocol::Command c) {
+  std::mutex m;
+  std::condition_variable cv;
+  std::string reply;
+  service.submit(std::move(c), [&](std::string s) {
+    std::scoped_lock lock(m);
+    reply = std::move(s);
+    cv.notify_all();
+  });
+  std::unique_lock lock(m);
+  cv.wait_for(lock, 30s, [&] { return !reply.empty(); });
+  return reply;
+}
+
+TEST(BackgroundSearch, RemovingAnObjectWhileTheWorkerSearchesDropsItsResultAndTheSearchGoesOn) {
+  const World& w = world();
+  Latch latch;
+  latch.hold_at = 2;  // the frame on which the worker would confirm the box
+  Seen seen;
+  auto service = make_service(latch, seen);
+  service->start();
+  ASSERT_TRUE(latch.wait_held(120s));
+  // The flange (scene index 0) leaves: the box moves to index 0 while the worker holds its search.
+  const std::string reply = ask(*service, protocol::RemoveObject{"flange"});
+  ASSERT_TRUE(reply.starts_with("OK RemoveObject")) << reply;
+  latch.release();
+  const pipeline::BackgroundSearch* bg = service->search()->background();
+  // The worker's result for the scene before is dropped; a new search finds the box again.
+  ASSERT_TRUE(seen.wait(120s, [&] { return !seen.box.empty() && seen.box.back().status == protocol::TrackStatus::kTracking; }))
+      << "the box was not found after the removal";
+  EXPECT_GE(bg->results_dropped(), 1);
+  EXPECT_EQ(bg->poses_applied(), 1);
+  {
+    std::scoped_lock lock(seen.m);
+    expect_near(to_se3(seen.box.back()), w.T_box, w.box_symmetries, "box");
+  }
+  EXPECT_TRUE(service->healthy());
+}
+
 TEST(BackgroundSearch, DestroyingTheServiceWhileTheWorkerSearchesReturnsCleanly) {
   // (1) The worker held in its hook: the stop request wakes it, the destructor joins.
   {

@@ -54,7 +54,8 @@ class BackgroundSearch {
   void set_search(std::unique_ptr<ObjectSearch> search, std::size_t objects);
 
   /// Cycle's thread, before VisionCycle::process: applies the worker's newest result (see the
-  /// class comment). Returns the number of objects it set a pose on.
+  /// class comment). Returns the number of objects it set a pose on. After objects were added,
+  /// removed or given another model, call set_search first (indices may have moved).
   int apply(scene::Scene& scene);
 
   /// Cycle's thread, after VisionCycle::process: bookkeeping, then the frame for the worker
@@ -65,8 +66,8 @@ class BackgroundSearch {
   [[nodiscard]] std::int64_t frames_searched() const { return frames_searched_.load(); }
   /// Poses apply() set so far (thread-safe).
   [[nodiscard]] std::int64_t poses_applied() const { return poses_applied_.load(); }
-  /// Results dropped by apply() because their object had been given a pose, removed or searched
-  /// anew meanwhile (thread-safe).
+  /// Found poses apply() dropped because their object had been given a pose, removed or
+  /// searched anew meanwhile (thread-safe).
   [[nodiscard]] std::int64_t results_dropped() const { return results_dropped_.load(); }
 
  private:

@@ -54,6 +54,8 @@ class ServiceSearch {
     bool done = false;
   };
   void build_loop(std::stop_token st);
+  /// Templates asked for and taken; a new search when the scene's objects or templates changed.
+  void refresh(scene::Scene& scene);
 
   pipeline::CycleParams cycle_;
   pipeline::ObjectSearchParams sp_;
