@@ -12,14 +12,17 @@
 #include "v4r/model/cao_reader.hpp"
 #include "v4r/pipeline/tracker.hpp"
 #include "v4r/synth/renderer.hpp"
+#include "alloc_counter.hpp"
 
 // Counting global allocator: counts allocations while `g_counting` is set. GCC cannot see that
 // the replaced operator new is malloc-based and warns on free().
 #pragma GCC diagnostic ignored "-Wmismatched-new-delete"
-namespace {
+namespace v4r::test {
 std::atomic<bool> g_counting{false};
 std::atomic<long> g_allocations{0};
-}  // namespace
+}  // namespace v4r::test
+using v4r::test::g_allocations;
+using v4r::test::g_counting;
 void* operator new(std::size_t n) {
   if (g_counting.load(std::memory_order_relaxed)) g_allocations.fetch_add(1, std::memory_order_relaxed);
   if (void* p = std::malloc(n == 0 ? 1 : n)) return p;
