@@ -40,6 +40,8 @@ void add_search_params(ParamRegistry& r, ObjectSearchParams& p) {
   r.add("search.confirm_translation", &p.confirm_translation_m, 0.0, 10.0, "m",
         "a found pose is confirmed when the next frame finds it again this close");
   r.add("search.confirm_rotation", &p.confirm_rotation_deg, 0.0, 180.0, "deg", "... and within this angle");
+  r.add("search.background", &p.background,
+        "v4r serve: search on a worker thread of its own with the newest image (false: on the cycle's thread)");
   detection::add_tag_params(r, p.tag, "search.tag");
 }
 
@@ -129,8 +131,25 @@ double ObjectSearch::refine(std::size_t object, const CameraImage& img, double s
   return ok ? rank : -1.0;
 }
 
-void ObjectSearch::search(scene::Scene& scene, std::size_t object, const CameraImage& img, double stamp_s,
-                          SearchReport& rep) {
+bool ObjectSearch::searchable(std::size_t object) const { return object < slots_.size() && slots_[object].active; }
+
+void ObjectSearch::begin_search(std::size_t object, const geometry::SE3* T_cam_last) {
+  if (!searchable(object)) return;
+  Slot& s = slots_[object];
+  s.have_last = T_cam_last != nullptr;
+  if (T_cam_last) s.T_last = *T_cam_last;
+  s.have_candidate = false;
+  s.search_frames = 0;
+}
+
+void ObjectSearch::end_search(std::size_t object) {
+  if (searchable(object)) slots_[object].have_candidate = false;
+}
+
+SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& img, double stamp_s,
+                                        geometry::SE3& T_cam_found, std::stop_token stop) {
+  SearchReport rep;
+  if (!searchable(object) || img.grey.empty()) return rep;
   Slot& s = slots_[object];
   const auto t0 = Clock::now();
   rep.searched = true;
@@ -140,6 +159,10 @@ void ObjectSearch::search(scene::Scene& scene, std::size_t object, const CameraI
   // The object's tag, if given and seen: a pose of the object must put it where it is seen.
   const detection::TagObservation tag = s.tag ? s.tag->detect(img.grey) : detection::TagObservation{};
   const auto consider = [&](geometry::SE3 T) {
+    if (stop.stop_requested()) {  // shutting down: the hypotheses left are not refined
+      rep.cancelled = true;
+      return -1.0;
+    }
     ++rep.tried;
     double e = refine(object, img, stamp_s, T);
     if (e >= 0.0 && tag.found && s.tag->corner_offset_px(tag, T) > p_.tag.max_offset_px) {
@@ -161,11 +184,7 @@ void ObjectSearch::search(scene::Scene& scene, std::size_t object, const CameraI
     const bool close = e >= 0.0 && (T.translation() - s.T_candidate.translation()).norm() <= p_.confirm_translation_m &&
                        geometry::rotation_angle_between(T, s.T_candidate) <= p_.confirm_rotation_deg * kDeg;
     if (close) {
-      const geometry::SE3 T_ref = scene.cameras()[0].T_ref_cam * T;
-      scene.set_pose(object, T_ref);
-      scene::Object& o = scene.objects()[object];
-      o.status = scene::TrackStatus::kTracking;
-      o.evidence = o.quality = best_evidence;
+      T_cam_found = T;
       s.have_candidate = false;
       s.have_last = true;
       s.T_last = T;
@@ -173,7 +192,7 @@ void ObjectSearch::search(scene::Scene& scene, std::size_t object, const CameraI
       rep.found = rep.locked = true;
       rep.best_evidence = best_evidence;
       rep.search_ms = ms_between(t0, Clock::now());
-      return;
+      return rep;
     }
   }
   // (2) The AprilTag on the object, if given: both poses of the square. One accepted makes the
@@ -193,7 +212,7 @@ void ObjectSearch::search(scene::Scene& scene, std::size_t object, const CameraI
       consider(geometry::SE3(Eigen::Quaterniond::Identity(), shifts[k]) * s.T_last);
   }
   // (4) The detector over the whole image.
-  if (!tag_accepted) {
+  if (!tag_accepted && !stop.stop_requested()) {
     const auto td = Clock::now();
     const detection::DetectionResult r =
         img.colour.empty() ? s.detector->detect(img.grey, hyp_) : s.detector->detect(img.colour, hyp_);
@@ -209,7 +228,30 @@ void ObjectSearch::search(scene::Scene& scene, std::size_t object, const CameraI
     s.T_candidate = T_best;
     rep.found = true;
   }
+  rep.cancelled = rep.cancelled || stop.stop_requested();
   rep.search_ms = ms_between(t0, Clock::now());
+  return rep;
+}
+
+SearchStep search_step(const ObjectSearchParams& p, scene::Scene& scene, std::size_t object, int& lost_streak,
+                       geometry::SE3& T_cam_last) {
+  scene::Object& o = scene.objects()[object];
+  if (o.status == scene::TrackStatus::kLost) {
+    if (++lost_streak < p.lost_frames || !p.enabled) return SearchStep::kWaiting;
+    // The last pose the image supported, or the prediction held while lost (camera frame).
+    T_cam_last = scene.cameras()[0].T_ref_cam.inverse() * o.T_ref_obj;
+    scene.start_search(object);
+    return SearchStep::kStarted;
+  }
+  lost_streak = 0;
+  return o.status == scene::TrackStatus::kSearching ? SearchStep::kSearch : SearchStep::kIdle;
+}
+
+void set_found_pose(scene::Scene& scene, std::size_t object, const geometry::SE3& T_cam_obj, double evidence) {
+  scene.set_pose(object, scene.cameras()[0].T_ref_cam * T_cam_obj);
+  scene::Object& o = scene.objects()[object];
+  o.status = scene::TrackStatus::kTracking;
+  o.evidence = o.quality = evidence;
 }
 
 std::span<const SearchReport> ObjectSearch::update(scene::Scene& scene, std::span<const CameraImage> images,
@@ -221,26 +263,19 @@ std::span<const SearchReport> ObjectSearch::update(scene::Scene& scene, std::spa
   for (std::size_t i = 0; i < objs.size() && i < slots_.size(); ++i) {
     Slot& s = slots_[i];
     if (!s.active) continue;
-    scene::Object& o = objs[i];
-    SearchReport& rep = reports_[i];
-    if (o.status == scene::TrackStatus::kLost) {
-      if (++s.lost_streak >= p_.lost_frames && p_.enabled) {
-        // The last pose the image supported, or the prediction held while lost (camera frame).
-        s.T_last = scene.cameras()[0].T_ref_cam.inverse() * o.T_ref_obj;
-        s.have_last = true;
-        s.have_candidate = false;
-        s.search_frames = 0;
-        scene.start_search(i);
-        rep.started = true;
-      }
-      continue;
+    geometry::SE3 T;
+    switch (search_step(p_, scene, i, s.lost_streak, T)) {
+      case SearchStep::kWaiting: break;
+      case SearchStep::kStarted:
+        begin_search(i, &T);
+        reports_[i].started = true;
+        break;
+      case SearchStep::kIdle: end_search(i); break;
+      case SearchStep::kSearch:
+        reports_[i] = search_frame(i, img, stamp_s, T);
+        if (reports_[i].locked) set_found_pose(scene, i, T, reports_[i].best_evidence);
+        break;
     }
-    s.lost_streak = 0;
-    if (o.status != scene::TrackStatus::kSearching) {
-      s.have_candidate = false;
-      continue;
-    }
-    search(scene, i, img, stamp_s, rep);
   }
   return {reports_.data(), std::min(reports_.size(), objs.size())};
 }

@@ -10,8 +10,9 @@ namespace v4r::server {
 
 ServiceSearch::ServiceSearch(const pipeline::CycleParams& cycle, const pipeline::ObjectSearchParams& sp,
                              const detection::DetectorParams& dp, const geometry::PinholeCamera& cam,
-                             std::string cache_dir)
+                             std::string cache_dir, pipeline::BackgroundSearch::Hook worker_hook)
     : cycle_(cycle), sp_(sp), dp_(dp), cam_(cam), cache_dir_(std::move(cache_dir)) {
+  if (sp_.background) background_ = std::make_unique<pipeline::BackgroundSearch>(sp_, std::move(worker_hook));
   builder_ = std::jthread([this](std::stop_token st) { build_loop(st); });
 }
 
@@ -59,12 +60,29 @@ void ServiceSearch::build_loop(std::stop_token st) {
   }
 }
 
+void ServiceSearch::before_cycle(scene::Scene& scene) {
+  if (!background_) return;
+  // A command since the last frame may have removed or replaced objects (their indices shift):
+  // a new search first, so that the worker's result for the objects before is dropped.
+  refresh(scene);
+  background_->apply(scene);
+}
+
 void ServiceSearch::update(scene::Scene& scene, std::span<const pipeline::CameraImage> images, double stamp_s) {
+  refresh(scene);
+  if (background_) {
+    background_->update(scene, images, stamp_s);
+  } else if (search_) {
+    search_->update(scene, images, stamp_s);
+  }
+}
+
+void ServiceSearch::refresh(scene::Scene& scene) {
   const auto objs = scene.objects();
   bool changed = objs.size() != searched_.size();
   for (std::size_t i = 0; i < objs.size(); ++i) {
     const model::Model* m = objs[i].model.get();
-    if (!changed && searched_[i] != m) changed = true;
+    if (!changed && (searched_[i] != m || searched_names_[i] != objs[i].name)) changed = true;
     // A model whose object needs searching gets its templates built on the builder thread (the
     // objects that track well cost no templates and no memory).
     const bool wanted = objs[i].status == scene::TrackStatus::kSearching || objs[i].status == scene::TrackStatus::kLost;
@@ -88,15 +106,21 @@ void ServiceSearch::update(scene::Scene& scene, std::span<const pipeline::Camera
   }
   if (changed) {
     // The scene's objects (or their templates) changed: a new search over the current objects.
-    search_ = std::make_unique<pipeline::ObjectSearch>(cycle_, sp_, dp_);
+    auto search = std::make_unique<pipeline::ObjectSearch>(cycle_, sp_, dp_);
     searched_.resize(objs.size());
+    searched_names_.resize(objs.size());
     for (std::size_t i = 0; i < objs.size(); ++i) {
       searched_[i] = objs[i].model.get();
+      searched_names_[i] = objs[i].name;
       const auto it = entries_.find(searched_[i]);
-      if (it != entries_.end() && it->second.templates) search_->add_object(scene, i, it->second.templates);
+      if (it != entries_.end() && it->second.templates) search->add_object(scene, i, it->second.templates);
+    }
+    if (background_) {
+      background_->set_search(std::move(search), objs.size());  // results for the objects before are dropped
+    } else {
+      search_ = std::move(search);
     }
   }
-  if (search_) search_->update(scene, images, stamp_s);
 }
 
 }  // namespace v4r::server

@@ -81,7 +81,8 @@ TrackingService::TrackingService(ServiceOptions opt, std::vector<std::unique_ptr
   camera_alive_.assign(opt_.cameras.size(), 1);
   paused_ = opt_.paused;
   if (opt_.search.enabled)
-    search_ = std::make_unique<ServiceSearch>(params_, opt_.search, opt_.detect, opt_.camera, opt_.cache_dir);
+    search_ = std::make_unique<ServiceSearch>(params_, opt_.search, opt_.detect, opt_.camera, opt_.cache_dir,
+                                              opt_.search_hook);
   add_start_objects();  // after the search: a start object without a pose is searched for
   if (opt_.object_hook) cycle_.set_object_hook([hook = opt_.object_hook](const scene::Object& o) { hook(o.name); });
 }
@@ -612,6 +613,7 @@ void TrackingService::process_frame(Clock::time_point released) {
     stamp = captured - first_capture_s_;
   }
   if (const double own = source.stamp_s(); own >= 0.0) stamp = own;  // e.g. a ROS image's header
+  if (search_) search_->before_cycle(scene_);  // a pose the search's worker found (search.background)
   const pipeline::CycleReport& rep = cycle_.process(scene_, std::span<const pipeline::CameraImage>(images), stamp);
   if (search_) search_->update(scene_, std::span<const pipeline::CameraImage>(images), rep.stamp_s);
 

@@ -109,9 +109,9 @@ TEST(ServerLoad, NeverReadingClientIsDroppedOthersGetEveryOneOf5000Frames) {
   const Sequence& seq = ship_sequence();
   constexpr int kFrames = 5000, kReaders = 3;
   ServerOptions o = test_options(seq, 0.0);
-  // Without the search (issue 10): it runs on the tracking thread after the cycle (not yet on a
-  // worker of its own), so a lost object's search would slow these 5000 frames down; this test is
-  // about the outbox and the RSS of the event path.
+  // Without the search (issue 10): on its worker thread it would still take a core from these
+  // 5000 frames played as fast as they can be; this test is about the outbox and the RSS of the
+  // event path.
   o.search.enabled = false;
   o.input = long_input(seq, kFrames).string();
   o.write_stall_timeout = 1000ms;

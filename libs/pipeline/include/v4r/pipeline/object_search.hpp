@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <memory>
 #include <span>
+#include <stop_token>
 #include <vector>
 
 #include "v4r/core/params.hpp"
@@ -36,6 +37,10 @@ struct ObjectSearchParams {
   /// within these limits (consistency over 2 frames).
   double confirm_translation_m = 0.03;
   double confirm_rotation_deg = 10.0;
+  /// `v4r serve`: the expensive search runs on a worker thread of its own, on a copy of the
+  /// newest camera-0 image (pipeline::BackgroundSearch), so that the other objects' cycles keep
+  /// their budget; false: on the cycle's thread after each cycle, as `v4r track` always does.
+  bool background = true;
   detection::TagParams tag;  ///< search.tag.*: the optional AprilTag start (set_tag_start)
 };
 
@@ -55,7 +60,27 @@ struct SearchReport {
   double detect_ms = 0.0;    ///< of which the detector's whole-image search
   int tag_poses = 0;         ///< poses of the object's AprilTag refined (0: no tag set, or not seen)
   int tag_vetoed = 0;        ///< refined poses refused because they put the seen tag elsewhere
+  bool cancelled = false;    ///< a stop request cut the search short (BackgroundSearch shutting down)
 };
+
+/// \brief What the cheap per-frame bookkeeping (search_step) says about one searchable object.
+enum class SearchStep {
+  kWaiting,  ///< lost, but not yet for lost_frames frames in a row (or the search is disabled)
+  kStarted,  ///< turned to `searching` on this frame (lost for lost_frames frames)
+  kSearch,   ///< searching: to be searched on this frame
+  kIdle,     ///< neither lost nor searching: a candidate it had is dropped
+};
+
+/// The bookkeeping of one object on one frame, after VisionCycle::process (cheap: on the
+/// cycle's thread): counts the frames in a row the object was reported `lost` in `lost_streak`;
+/// at p.lost_frames (with p.enabled) the object turns to `searching` (Scene::start_search) and
+/// `T_cam_last` receives the pose it was lost at (camera 0's frame). Allocates nothing.
+SearchStep search_step(const ObjectSearchParams& p, scene::Scene& scene, std::size_t object, int& lost_streak,
+                       geometry::SE3& T_cam_last);
+
+/// Sets a pose the search found and confirmed: T_cam_obj (camera 0's frame) becomes the object's
+/// pose (Scene::set_pose), `tracking`, with `evidence` as its evidence and quality.
+void set_found_pose(scene::Scene& scene, std::size_t object, const geometry::SE3& T_cam_obj, double evidence);
 
 /// \brief Finds objects that have no pose (kSearching) and hands them back to the vision cycle.
 ///
@@ -93,6 +118,25 @@ class ObjectSearch {
   /// Returns one report per scene object (objects without templates are never searched).
   std::span<const SearchReport> update(scene::Scene& scene, std::span<const CameraImage> images, double stamp_s);
 
+  // The parts of update(), for a search that runs away from the scene (BackgroundSearch): they
+  // never touch a scene, so that they can run on a worker thread on copies of the images.
+
+  /// True when `object` was made searchable (add_object).
+  [[nodiscard]] bool searchable(std::size_t object) const;
+  /// A search of `object` begins: its candidate is dropped; perturbed restarts are tried around
+  /// T_cam_last (the pose it was lost at, camera 0's frame) on the first local_frames search
+  /// frames, none if null.
+  void begin_search(std::size_t object, const geometry::SE3* T_cam_last);
+  /// `object` is not searched any more (found, or given a pose): its candidate is dropped.
+  void end_search(std::size_t object);
+  /// Searches `object` (searchable) on one frame: steps (1)-(4) of the class comment. When a
+  /// candidate was confirmed (report `locked`), `T_cam_found` receives its pose (camera 0's
+  /// frame) and report best_evidence its evidence; the search of this object then ends. A stop
+  /// request skips the hypotheses not yet refined (report `cancelled`). Allocates nothing and
+  /// throws nothing (except for the tag detection, see set_tag_start).
+  SearchReport search_frame(std::size_t object, const CameraImage& img, double stamp_s, geometry::SE3& T_cam_found,
+                            std::stop_token stop = {});
+
   [[nodiscard]] const ObjectSearchParams& params() const { return p_; }
 
  private:
@@ -116,7 +160,6 @@ class ObjectSearch {
   /// Refines T (camera frame) with the private cycle; returns its rank (edge samples the image
   /// confirms) if accepted, else -1; its edge evidence (share) in last_evidence_.
   double refine(std::size_t object, const CameraImage& img, double stamp_s, geometry::SE3& T);
-  void search(scene::Scene& scene, std::size_t object, const CameraImage& img, double stamp_s, SearchReport& rep);
 
   ObjectSearchParams p_;
   detection::DetectorParams dp_;

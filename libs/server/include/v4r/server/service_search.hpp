@@ -12,14 +12,18 @@
 #include <vector>
 
 #include "v4r/detection/template_set.hpp"
+#include "v4r/pipeline/background_search.hpp"
 #include "v4r/pipeline/object_search.hpp"
 #include "v4r/scene/scene.hpp"
 
 namespace v4r::server {
 
 /// \brief The search of `v4r serve` (issue 10): objects without a pose (no SetPose yet) and objects
-/// lost for search.lost_frames frames are searched for by a pipeline::ObjectSearch, run on the
-/// tracking thread after each cycle. The detector's templates of a model whose object is
+/// lost for search.lost_frames frames are searched for by a pipeline::ObjectSearch. With
+/// search.background (the default) the search runs on a worker thread with the newest frame
+/// (pipeline::BackgroundSearch) and only its bookkeeping on the tracking thread, so that the
+/// tracked objects' cycles keep their budget; without it, on the tracking thread after each
+/// cycle, as `v4r track` does. The detector's templates of a model whose object is
 /// searching or lost are loaded or built (detection::load_or_build, cached) on a builder thread
 /// of their own, so that the frames never wait for them; the object is searched once they are
 /// there (an object that tracks well costs no templates).
@@ -27,15 +31,21 @@ namespace v4r::server {
 class ServiceSearch {
  public:
   ServiceSearch(const pipeline::CycleParams& cycle, const pipeline::ObjectSearchParams& sp,
-                const detection::DetectorParams& dp, const geometry::PinholeCamera& cam, std::string cache_dir);
+                const detection::DetectorParams& dp, const geometry::PinholeCamera& cam, std::string cache_dir,
+                pipeline::BackgroundSearch::Hook worker_hook = {});
   ~ServiceSearch();
   ServiceSearch(const ServiceSearch&) = delete;
   ServiceSearch& operator=(const ServiceSearch&) = delete;
 
+  /// Before the frame's cycle, on the tracking thread: a pose the worker found is set on its
+  /// object if it is still searching (background search only).
+  void before_cycle(scene::Scene& scene);
   /// After the frame's cycle, on the tracking thread.
   void update(scene::Scene& scene, std::span<const pipeline::CameraImage> images, double stamp_s);
   /// Templates of `model` are ready (or could not be built); for tests.
   [[nodiscard]] bool ready(const model::Model* model) const;
+  /// The worker's search (null without search.background); for tests and benchmarks.
+  [[nodiscard]] const pipeline::BackgroundSearch* background() const { return background_.get(); }
 
  private:
   struct Entry {
@@ -44,6 +54,8 @@ class ServiceSearch {
     bool done = false;
   };
   void build_loop(std::stop_token st);
+  /// Templates asked for and taken; a new search when the scene's objects or templates changed.
+  void refresh(scene::Scene& scene);
 
   pipeline::CycleParams cycle_;
   pipeline::ObjectSearchParams sp_;
@@ -52,7 +64,9 @@ class ServiceSearch {
   std::string cache_dir_;
   std::map<const model::Model*, Entry> entries_;  // tracking thread only
   std::vector<const model::Model*> searched_;     // scene object models the search was set up for
-  std::unique_ptr<pipeline::ObjectSearch> search_;
+  std::vector<std::string> searched_names_;       // ... and their names
+  std::unique_ptr<pipeline::ObjectSearch> search_;  // on the tracking thread (not search.background)
+  std::unique_ptr<pipeline::BackgroundSearch> background_;  // search.background
 
   mutable std::mutex mutex_;  // guards jobs_, finished_, ready_
   std::condition_variable_any wake_;

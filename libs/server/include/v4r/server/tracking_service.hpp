@@ -64,6 +64,9 @@ struct ServiceOptions {
   /// name at the start of its measurement on the tracking thread; whatever it throws is a fault
   /// in that object's cycle.
   std::function<void(const std::string& object)> object_hook;
+  /// Test seam (never set by a client or the command line): called on the search's worker
+  /// (search.background) with its stop token after it took a frame, before it searches it.
+  pipeline::BackgroundSearch::Hook search_hook;
 };
 
 /// \brief Everything one frame produced for the clients, formatted once and shared by all of them.
@@ -146,6 +149,8 @@ class TrackingService {
   [[nodiscard]] std::uint64_t faults() const { return faults_.load(); }
   /// False once the tracking thread stopped after an error it could not recover from.
   [[nodiscard]] bool healthy() const { return healthy_.load(); }
+  /// The search (null with search.enabled false); its counters are for tests and benchmarks.
+  [[nodiscard]] const ServiceSearch* search() const { return search_.get(); }
 
  private:
   struct ObjectEntry {
