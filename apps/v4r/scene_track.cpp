@@ -19,6 +19,7 @@
 #include "progress.hpp"
 #include "scene_inputs.hpp"
 #include "scene_setup.hpp"
+#include "templates.hpp"
 #include "v4r/detection/template_cache.hpp"
 #include "v4r/geometry/se3_jacobians.hpp"
 #include "v4r/io/frame_source.hpp"
@@ -131,12 +132,9 @@ Expected<SceneTrackSummary> run_scene_track(const SceneTrackOptions& opt) {
   std::vector<char> searchable(sc.objects().size(), 0);
   const auto make_searchable = [&](std::size_t o) -> Expected<void> {
     if (!search) search.emplace(opt.params, opt.search, opt.detect);
-    detection::CacheReport crep;
-    auto ts = detection::load_or_build(*sc.objects()[o].model, sc.cameras()[0].intrinsics, opt.detect, opt.cache_dir, &crep);
+    auto ts = templates_for(*sc.objects()[o].model, sc.cameras()[0].intrinsics, opt.detect, opt.cache_dir, opt.quiet,
+                            fmt::format(" of '{}'", sc.objects()[o].name));
     if (!ts) return ts.error();
-    if (crep.built && !opt.quiet)
-      fmt::print(stderr, "v4r track: built the detector's templates of '{}' ({}){}\n", sc.objects()[o].name, crep.reason,
-                 crep.written ? ", cached in " + crep.path : ", not cached: " + crep.write_error);
     search->add_object(sc, o, *ts);
     searchable[o] = 1;
     return {};

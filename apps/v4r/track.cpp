@@ -13,6 +13,7 @@
 #include "plausibility.hpp"
 #include "pose_csv.hpp"
 #include "progress.hpp"
+#include "templates.hpp"
 #include "v4r/detection/tag_start.hpp"
 #include "v4r/detection/template_cache.hpp"
 #include "v4r/io/camera_io.hpp"
@@ -83,12 +84,8 @@ Timing choose_timing(const TrackOptions& opt, const io::FrameSource& src) {
 /// camera, from the cache or built (a few seconds, once per model, camera and view range).
 Expected<void> enable_search(pipeline::SingleObjectTracker& tracker, const TrackOptions& opt,
                              const model::Model& model, const geometry::PinholeCamera& cam) {
-  detection::CacheReport rep;
-  auto ts = detection::load_or_build(model, cam, opt.detect, opt.cache_dir, &rep);
+  auto ts = templates_for(model, cam, opt.detect, opt.cache_dir, opt.quiet, "");
   if (!ts) return ts.error();
-  if (rep.built && !opt.quiet)
-    fmt::print(stderr, "v4r track: built the detector's templates ({}){}\n", rep.reason,
-               rep.written ? ", cached in " + rep.path : ", not cached: " + rep.write_error);
   tracker.enable_search(*ts, opt.search, opt.detect);
   if (opt.tag) {
     auto tag = detection::TagStart::create(*opt.tag, cam, opt.search.tag);
