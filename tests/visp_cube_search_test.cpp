@@ -18,6 +18,7 @@
 #include "v4r/io/pose_io.hpp"
 #include "v4r/model/cao_reader.hpp"
 #include "v4r/pipeline/tracker.hpp"
+#include "visp_cube.hpp"
 #include "visp_images.hpp"
 
 using namespace v4r;
@@ -26,31 +27,19 @@ namespace fs = std::filesystem;
 TEST(VispCubeSearch, FoundWithoutAnInitialPoseByFrameTenAndTrackedAfter) {
   const fs::path root = visp_images();
   V4R_NEED_VISP_IMAGES(root);
-  const fs::path mbt = root / "mbt";
-  auto m = model::load_cao((mbt / "cube.cao").string());
-  ASSERT_TRUE(m) << m.error().to_string();
-  auto model = std::make_shared<const model::Model>(std::move(*m));
-  auto cam = io::load_camera(V4R_TEST_DATA_DIR "/visp_cube_camera.yaml");
-  ASSERT_TRUE(cam) << cam.error().to_string();
-  auto ref = io::load_pose_csv(V4R_TEST_DATA_DIR "/visp_cube_reference.csv");
-  ASSERT_TRUE(ref) << ref.error().to_string();
-
-  detection::DetectorParams dp;  // default view range; the hand-held camera is 0.45..0.6 m away
-  dp.views.distance_min_m = 0.3;
-  dp.views.distance_max_m = 0.8;
-  auto ts = detection::build_templates(*model, *cam, dp);
+  VispCubeData cube;
+  ASSERT_NO_FATAL_FAILURE(load_visp_cube(root, cube));
+  const auto& model = cube.model;
+  const detection::DetectorParams dp = cube.detector();
+  auto ts = detection::build_templates(*model, cube.camera, dp);
   ASSERT_TRUE(ts) << ts.error().to_string();
   const auto sym = detection::model_symmetries(*model);
 
-  pipeline::SingleObjectTracker tracker(model, *cam);
+  pipeline::SingleObjectTracker tracker(model, cube.camera);
   tracker.enable_search(std::make_shared<const detection::TemplateSet>(std::move(*ts)), pipeline::ObjectSearchParams{},
                         dp);
   tracker.start_search();
-  std::vector<fs::path> frames;
-  for (const auto& e : fs::directory_iterator(mbt / "cube"))
-    if (e.path().extension() == ".pgm") frames.push_back(e.path());
-  std::sort(frames.begin(), frames.end());
-  ASSERT_EQ(frames.size(), ref->size());
+  const std::vector<fs::path>& frames = cube.frames;
   int first = -1, not_tracking_after = 0, degraded_after = 0, far = 0;
   double worst_mm = 0.0;
   for (std::size_t k = 0; k < frames.size(); ++k) {
@@ -67,7 +56,7 @@ TEST(VispCubeSearch, FoundWithoutAnInitialPoseByFrameTenAndTrackedAfter) {
     }
     if (s == scene::TrackStatus::kDegraded) ++degraded_after;
     if (s == scene::TrackStatus::kLost || s == scene::TrackStatus::kSearching) ++not_tracking_after;
-    const auto e = detection::symmetric_pose_error(r.T_cam_obj, (*ref)[k].T_cam_obj, sym);
+    const auto e = detection::symmetric_pose_error(r.T_cam_obj, cube.reference[k].T_cam_obj, sym);
     worst_mm = std::max(worst_mm, 1e3 * e.translation);
     if (e.translation > 0.05 || e.rotation > 15.0 * M_PI / 180.0) ++far;
   }

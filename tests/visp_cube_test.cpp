@@ -28,6 +28,7 @@
 #include "v4r/io/pose_io.hpp"
 #include "v4r/model/cao_reader.hpp"
 #include "v4r/pipeline/tracker.hpp"
+#include "visp_cube.hpp"
 #include "visp_images.hpp"
 
 using namespace v4r;
@@ -61,24 +62,15 @@ Eigen::Vector3d unit_vector(std::mt19937& g) {
 TEST(VispCube, TracksTheRealCubeFromAPerturbedStartLikeViSP) {
   const fs::path root = visp_images();
   V4R_NEED_VISP_IMAGES(root);
-  const fs::path mbt = root / "mbt";
-
-  auto m = model::load_cao((mbt / "cube.cao").string());
-  ASSERT_TRUE(m) << m.error().to_string();
-  auto model = std::make_shared<const model::Model>(std::move(*m));
-  auto cam = io::load_camera(V4R_TEST_DATA_DIR "/visp_cube_camera.yaml");
-  ASSERT_TRUE(cam) << cam.error().to_string();
-  auto ref = io::load_pose_csv(V4R_TEST_DATA_DIR "/visp_cube_reference.csv");
-  ASSERT_TRUE(ref) << ref.error().to_string();
+  VispCubeData cube;
+  ASSERT_NO_FATAL_FAILURE(load_visp_cube(root, cube));
+  const fs::path& mbt = cube.mbt;
+  const auto& model = cube.model;
   auto start = io::load_pose_file((mbt / "cube.0.pos").string());
   ASSERT_TRUE(start) << start.error().to_string();
 
-  std::vector<fs::path> frames;
-  for (const auto& e : fs::directory_iterator(mbt / "cube"))
-    if (e.path().extension() == ".pgm") frames.push_back(e.path());
-  std::sort(frames.begin(), frames.end());
+  const std::vector<fs::path>& frames = cube.frames;
   ASSERT_EQ(frames.size(), 218u);
-  ASSERT_EQ(ref->size(), frames.size());
 
   // Start 1 cm and 3 degrees off ViSP's start pose (fixed seed): translation along a random
   // direction, rotation about a random axis through the object's origin.
@@ -88,7 +80,7 @@ TEST(VispCube, TracksTheRealCubeFromAPerturbedStartLikeViSP) {
   const geometry::SE3 T0 = *start;
   const geometry::SE3 T0_perturbed(Eigen::Matrix3d(geometry::so3_exp(dw) * T0.rotation()), T0.translation() + dt);
 
-  pipeline::SingleObjectTracker tracker(model, *cam);
+  pipeline::SingleObjectTracker tracker(model, cube.camera);
   tracker.set_pose(T0_perturbed);
   std::vector<double> et_mm, er_deg;
   int lost = 0, first_lost = -1, worst_t_frame = -1;
@@ -98,7 +90,7 @@ TEST(VispCube, TracksTheRealCubeFromAPerturbedStartLikeViSP) {
     ASSERT_FALSE(grey.empty()) << frames[k];
     const pipeline::FrameResult r = tracker.track(io::as_view(grey));
     if (k == 0) continue;  // the first frame starts from the perturbed pose
-    const geometry::SE3& R = (*ref)[k].T_cam_obj;
+    const geometry::SE3& R = cube.reference[k].T_cam_obj;
     et_mm.push_back(1e3 * (r.T_cam_obj.translation() - R.translation()).norm());
     er_deg.push_back(rotation_deg(r.T_cam_obj.rotation(), R.rotation()));
     if (et_mm.back() > worst_t) {
