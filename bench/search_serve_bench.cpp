@@ -104,8 +104,8 @@ void BM_ServeWhileSearching(benchmark::State& state) {
     o.detect = sc.detect;
     o.cache_dir = sc.cache.string();
     o.search.background = background;
-    o.objects.push_back(server::StartObject{"flange", sc.flange, sc.T_flange, true});
-    o.objects.push_back(server::StartObject{"box", sc.box, geometry::SE3(), false});
+    o.objects.push_back(server::StartObject{"flange", sc.flange, sc.T_flange, true, {}});
+    o.objects.push_back(server::StartObject{"box", sc.box, geometry::SE3(), false, {}});
     server::TrackingService service(std::move(o), std::make_unique<LoopSource>(sc.frames));
     std::mutex m;
     std::condition_variable cv;

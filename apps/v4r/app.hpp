@@ -80,10 +80,6 @@ Expected<std::shared_ptr<const model::Model>> load_model(const std::string& path
                                                          const model::CaoReadOptions& cao = {},
                                                          std::vector<Error>* warnings = nullptr);
 
-/// Parses `--colour R,G,B` (three numbers in [0, 1], e.g. 0.2,0.6,0.1); an error names the option
-/// and the component at fault.
-Expected<Eigen::Vector3f> parse_colour(const std::string& spec, const std::string& option = "--colour");
-
 /// The model with every face coloured `colour` (when given): `--colour` for models without a
 /// face colour, searched by the detector's colour stage.
 std::shared_ptr<const model::Model> with_colour(std::shared_ptr<const model::Model> m, const std::optional<Eigen::Vector3f>& colour);

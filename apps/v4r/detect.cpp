@@ -22,6 +22,7 @@
 #include "v4r/io/camera_io.hpp"
 #include "v4r/io/config_io.hpp"
 #include "v4r/io/frame_source.hpp"
+#include "v4r/model/model_colour.hpp"
 #include "v4r/pipeline/params.hpp"
 #include "v4r/synth/renderer.hpp"
 
@@ -136,7 +137,7 @@ Expected<Loaded> load_all(const DetectArgs& a, const char* cmd) {
   if (!m) return m.error();
   l.model = *m;
   if (!a.colour.empty()) {
-    auto c = parse_colour(a.colour);
+    auto c = model::parse_colour(a.colour, "--colour");
     if (!c) return c.error();
     l.model = with_colour(l.model, *c);
   }

@@ -30,6 +30,7 @@
 #include "v4r/io/frame_source.hpp"
 #include "v4r/io/pose_io.hpp"
 #include "v4r/model/cao_reader.hpp"
+#include "v4r/model/model_colour.hpp"
 #include "v4r/pipeline/evaluation.hpp"
 #include "v4r/synth/conditions.hpp"
 #include "v4r/synth/renderer.hpp"
@@ -518,7 +519,7 @@ int main(int argc, char** argv) {
         to.init_pose = *p;
       }
       if (!track_colour.empty()) {
-        auto c = app::parse_colour(track_colour);
+        auto c = model::parse_colour(track_colour, "--colour");
         if (!c) {
           fmt::print(stderr, "v4r track: error: {}\n", c.error().to_string());
           return 1;

@@ -2,7 +2,6 @@
 // Models as every subcommand reads them: built-in names, .cao files and meshes, in the user's units.
 #include <cctype>
 #include <cstdio>
-#include <charconv>
 #include <filesystem>
 
 #include <fmt/format.h>
@@ -48,26 +47,6 @@ Expected<double> units_scale(const std::string& units) {
   if (u == "cm") return 0.01;
   if (u == "mm") return 0.001;
   return make_error("--model-units", 0, 0, fmt::format("unknown unit '{}' (mm, cm or m)", units));
-}
-
-Expected<Eigen::Vector3f> parse_colour(const std::string& spec, const std::string& option) {
-  Eigen::Vector3f rgb;
-  std::size_t start = 0;
-  for (int c = 0; c < 3; ++c) {
-    const std::size_t comma = spec.find(',', start);
-    if (c < 2 && comma == std::string::npos)
-      return make_error(option, 0, 0, fmt::format("'{}': expected R,G,B, three numbers in 0..1 (e.g. 0.2,0.6,0.1)", spec));
-    if (c == 2 && comma != std::string::npos)
-      return make_error(option, 0, 0, fmt::format("'{}': expected three values R,G,B, found more", spec));
-    const std::string part = spec.substr(start, c == 2 ? std::string::npos : comma - start);
-    double v = 0.0;
-    const auto [ptr, ec] = std::from_chars(part.data(), part.data() + part.size(), v);
-    if (part.empty() || ec != std::errc() || ptr != part.data() + part.size() || !(v >= 0.0 && v <= 1.0))
-      return make_error(option, 0, 0, fmt::format("'{}': component {} must be a number in 0..1, found '{}'", spec, "RGB"[c], part));
-    rgb[c] = static_cast<float>(v);
-    start = comma + 1;
-  }
-  return rgb;
 }
 
 std::shared_ptr<const model::Model> with_colour(std::shared_ptr<const model::Model> m, const std::optional<Eigen::Vector3f>& colour) {

@@ -17,7 +17,8 @@ Expected<SceneSetup> build_scene(const io::SceneFile& file, bool warnings) {
     if (!model) return o.model_at.error(fmt::format("the model does not load: {}", model.error().to_string()));
     if (warnings)
       for (auto& w : check_model_size(**model, o.model_path)) s.warnings.push_back(fmt::format("{}: {}", o.name, w));
-    auto added = s.scene.add_object(o.name, *model);
+    // `colour:` as --colour: every face of the model gets it (the detector's colour stage).
+    auto added = s.scene.add_object(o.name, with_colour(*model, o.colour));
     if (!added) return o.at.error(added.error().message);
   }
   if (auto p = set_start_poses(file, s.scene); !p) return p.error();

@@ -20,6 +20,7 @@
 #include "scene_inputs.hpp"
 #include "scene_setup.hpp"
 #include "templates.hpp"
+#include "v4r/detection/tag_start.hpp"
 #include "v4r/detection/template_cache.hpp"
 #include "v4r/geometry/se3_jacobians.hpp"
 #include "v4r/io/frame_source.hpp"
@@ -88,6 +89,9 @@ Expected<SceneTrackSummary> run_scene_track(const SceneTrackOptions& opt) {
   if (!file) return file.error();
   if (file->objects.empty())
     return file->objects_at.error("no objects: `v4r track --scene` needs at least one object to track");
+  if (!opt.search.enabled)
+    for (const io::SceneObjectSpec& o : file->objects)
+      if (o.tag) return o.tag_at.error("the tag is used by the search, and search.enabled is false");
   auto inputs = open_inputs(*file);
   if (!inputs) return inputs.error();
   // Frame 0 of every camera first: a calibration without the image size takes its camera's.
@@ -136,6 +140,12 @@ Expected<SceneTrackSummary> run_scene_track(const SceneTrackOptions& opt) {
                             fmt::format(" of '{}'", sc.objects()[o].name));
     if (!ts) return ts.error();
     search->add_object(sc, o, *ts);
+    if (const io::SceneObjectSpec& spec = file->objects[o]; spec.tag) {
+      // `tag:` as --tag: the object's AprilTag starts its search in camera 0.
+      auto tag = detection::TagStart::create(*spec.tag, sc.cameras()[0].intrinsics, opt.search.tag);
+      if (!tag) return spec.tag_at.error(tag.error().to_string());
+      search->set_tag_start(o, std::move(*tag));
+    }
     searchable[o] = 1;
     return {};
   };

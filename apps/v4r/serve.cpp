@@ -64,8 +64,11 @@ Expected<server::ServeScene> load_serve_scene(const std::string& path) {
   sc.cameras.assign(setup->scene.cameras().begin(), setup->scene.cameras().end());
   sc.inputs = std::move(*inputs);
   sc.reference_frame = file->reference_frame;
-  for (const scene::Object& o : setup->scene.objects())
-    sc.objects.push_back(server::StartObject{o.name, o.model, o.T_ref_obj, o.status != scene::TrackStatus::kSearching});
+  for (std::size_t i = 0; i < setup->scene.objects().size(); ++i) {
+    const scene::Object& o = setup->scene.objects()[i];
+    sc.objects.push_back(server::StartObject{o.name, o.model, o.T_ref_obj, o.status != scene::TrackStatus::kSearching,
+                                             file->objects[i].tag});
+  }
   return sc;
 }
 

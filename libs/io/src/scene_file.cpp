@@ -15,6 +15,7 @@
 
 #include "v4r/io/camera_io.hpp"
 #include "v4r/io/frame_source.hpp"
+#include "v4r/model/model_colour.hpp"
 
 // GCC 12 reports a dangling pointer inside yaml-cpp 0.7's inlined Node accessors (node/impl.h), a
 // known false positive of that header; it is silenced for this file only.
@@ -105,6 +106,39 @@ class SceneReader {
     return n;
   }
 
+  /// `tag:` as `--tag` takes it (detection::parse_tag_spec): "family:id:size_m:tx ty tz rx ry rz".
+  Expected<detection::TagSpec> tag(const YAML::Node& v, const std::string& field) const {
+    if (!v.IsScalar())
+      return error_at(v, field, "expected one string \"family:id:size_m:tx ty tz rx ry rz\" (as --tag)");
+    auto t = detection::parse_tag_spec(v.Scalar(), field);
+    if (!t) return error_at(v, field, without_prefix(t.error().message, field));
+    return t;
+  }
+
+  /// `colour: [R, G, B]` (or "R,G,B"), each in 0..1, as `--colour` takes it (model::parse_colour).
+  Expected<Eigen::Vector3f> colour(const YAML::Node& v, const std::string& field) const {
+    std::string text;
+    if (v.IsScalar()) {
+      text = v.Scalar();
+    } else if (v.IsSequence()) {
+      for (std::size_t i = 0; i < v.size(); ++i) {
+        if (!v[i].IsScalar()) return error_at(v[i], field, fmt::format("element {} is not a number", i + 1));
+        text += (i == 0 ? "" : ",") + v[i].Scalar();
+      }
+    } else {
+      return error_at(v, field, "expected three numbers [R, G, B], each in 0..1");
+    }
+    auto c = model::parse_colour(text, field);
+    if (!c) return error_at(v, field, c.error().message);
+    return c;
+  }
+
+  /// A message of a parser that starts with the field it was given ("field: ..."), without it.
+  static std::string without_prefix(const std::string& message, const std::string& field) {
+    const std::string prefix = field + ": ";
+    return message.starts_with(prefix) ? message.substr(prefix.size()) : message;
+  }
+
   Expected<void> check_keys(const YAML::Node& map, const std::set<std::string>& allowed, const std::string& where) const {
     for (auto it = map.begin(); it != map.end(); ++it) {
       const std::string key = it->first.IsScalar() ? it->first.Scalar() : std::string("?");
@@ -163,7 +197,7 @@ class SceneReader {
   Expected<SceneObjectSpec> object(const YAML::Node& e, std::size_t i) const {
     const std::string f = fmt::format("objects[{}]", i);
     if (!e.IsMap()) return error_at(e, f, "expected a mapping with name, model, init_pose");
-    if (auto k = check_keys(e, {"name", "model", "mesh_scale", "model_units", "init_pose"}, f); !k) return k.error();
+    if (auto k = check_keys(e, {"name", "model", "mesh_scale", "model_units", "init_pose", "tag", "colour"}, f); !k) return k.error();
     SceneObjectSpec o;
     o.at = mark(e, f);
     auto n = name(e, f + ".name");
@@ -206,6 +240,17 @@ class SceneReader {
       if (!n) return n.error();
       o.init_numbers = *n;
       o.init_pose = pose_from_numbers(*n);
+    }
+    if (const YAML::Node t = e["tag"]; t.IsDefined() && !t.IsNull()) {
+      auto v = tag(t, f + ".tag");
+      if (!v) return v.error();
+      o.tag = std::move(*v);
+      o.tag_at = mark(t, f + ".tag");
+    }
+    if (const YAML::Node c = e["colour"]; c.IsDefined() && !c.IsNull()) {
+      auto v = colour(c, f + ".colour");
+      if (!v) return v.error();
+      o.colour = *v;
     }
     return o;
   }

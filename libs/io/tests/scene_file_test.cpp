@@ -120,6 +120,43 @@ TEST(SceneFile, LiveAndSchemeInputsAreNotPaths) {
   EXPECT_EQ(fs::path(s->cameras[1].input), fs::path(d.file("frames_left/%06d.png")));
 }
 
+TEST(SceneFile, ReadsAnObjectsTagAndColourAsTheCommandLineTakesThem) {
+  SceneDir d;
+  ASSERT_TRUE(d.ok());
+  auto s = d.load("cameras:\n  - name: c\n    calibration: left.yaml\nobjects:\n"
+                  "  - name: sponge\n    model: part.cao\n"
+                  "    tag: \"tag36h11:7:0.08:0.01 -0.02 0.05 3.14159265 0 0\"\n"
+                  "    colour: [0.2, 0.6, 0.1]\n"
+                  "  - name: plain\n    model: part.cao\n"
+                  "  - name: quoted\n    model: part.cao\n    tag: 'tag25h9:3:0.1:\"0, 0, 0.02, 0, 0.5, 0\"'\n"
+                  "    colour: \"1,0,0.5\"\n");
+  ASSERT_TRUE(s) << s.error().to_string();
+  ASSERT_EQ(s->objects.size(), 3u);
+  const SceneObjectSpec& a = s->objects[0];
+  ASSERT_TRUE(a.tag.has_value());
+  EXPECT_EQ(a.tag->family, "tag36h11");
+  EXPECT_EQ(a.tag->id, 7);
+  EXPECT_DOUBLE_EQ(a.tag->size_m, 0.08);
+  EXPECT_TRUE(a.tag->T_obj_tag.translation().isApprox(Eigen::Vector3d(0.01, -0.02, 0.05), 1e-12));
+  EXPECT_NEAR(a.tag->T_obj_tag.rvec().norm(), 3.14159265, 1e-6);
+  EXPECT_EQ(a.tag_at.line, 7);
+  EXPECT_EQ(a.tag_at.field, "objects[0].tag");
+  // The same text as --tag gives the same tag.
+  auto cli = detection::parse_tag_spec("tag36h11:7:0.08:\"0.01 -0.02 0.05 3.14159265 0 0\"", "--tag");
+  ASSERT_TRUE(cli);
+  EXPECT_TRUE(cli->T_obj_tag.matrix().isApprox(a.tag->T_obj_tag.matrix(), 1e-12));
+  ASSERT_TRUE(a.colour.has_value());
+  EXPECT_TRUE(a.colour->isApprox(Eigen::Vector3f(0.2f, 0.6f, 0.1f)));
+  EXPECT_FALSE(s->objects[1].tag.has_value());
+  EXPECT_FALSE(s->objects[1].colour.has_value());
+  ASSERT_TRUE(s->objects[2].tag.has_value());
+  EXPECT_EQ(s->objects[2].tag->family, "tag25h9");
+  EXPECT_EQ(s->objects[2].tag->id, 3);
+  EXPECT_TRUE(s->objects[2].tag->T_obj_tag.translation().isApprox(Eigen::Vector3d(0, 0, 0.02), 1e-12));
+  ASSERT_TRUE(s->objects[2].colour.has_value());
+  EXPECT_TRUE(s->objects[2].colour->isApprox(Eigen::Vector3f(1.0f, 0.0f, 0.5f)));
+}
+
 /// One broken scene file: what the error must name.
 struct BadCase {
   const char* what;
@@ -133,6 +170,7 @@ TEST(SceneFile, EveryErrorNamesFileLineAndField) {
   SceneDir d;
   ASSERT_TRUE(d.ok());
   const std::string cam = "cameras:\n  - name: left\n    calibration: left.yaml\n";
+  const std::string obj = cam + "objects:\n  - name: p\n    model: part.cao\n";
   const BadCase cases[] = {
       {"unknown top-level key", "camras:\n  - name: x\n", 1, "camras", "unknown key"},
       {"unknown camera key", cam + "    focal: 3\n", 4, "cameras[0].focal", "unknown key"},
@@ -160,6 +198,26 @@ TEST(SceneFile, EveryErrorNamesFileLineAndField) {
        "names files"},
       {"calibration that does not load", "cameras:\n  - name: left\n    calibration: part.cao\n", 3,
        "cameras[0].calibration", "does not load"},
+      {"unknown tag family", obj + "    tag: \"tag99h1:0:0.08:0 0 0 0 0 0\"\n", 7, "objects[0].tag",
+       "unknown tag family 'tag99h1'"},
+      {"tag id not a number", obj + "    tag: \"tag36h11:x:0.08:0 0 0 0 0 0\"\n", 7, "objects[0].tag",
+       "field 'id'"},
+      {"tag size not a number", obj + "    init_pose: [0, 0, 1, 0, 0, 0]\n    tag: \"tag36h11:0:big:0 0 0 0 0 0\"\n", 8,
+       "objects[0].tag", "field 'size_m'"},
+      {"tag pose number", obj + "    tag: \"tag36h11:0:0.08:0 0 zero 0 0 0\"\n", 7, "objects[0].tag",
+       "field 'tz'"},
+      {"tag pose of five numbers", obj + "    tag: \"tag36h11:0:0.08:0 0 0 0 0\"\n", 7, "objects[0].tag",
+       "field 'rz': missing"},
+      {"tag pose of seven numbers", obj + "    tag: \"tag36h11:0:0.08:0 0 0 0 0 0 1\"\n", 7, "objects[0].tag",
+       "seventh number"},
+      {"tag without size", obj + "    tag: \"tag36h11:0\"\n", 7, "objects[0].tag", "field 'size_m': missing"},
+      {"tag as a list", obj + "    tag: [tag36h11, 0]\n", 7, "objects[0].tag", "one string"},
+      {"colour of two numbers", obj + "    colour: [0.2, 0.6]\n", 7, "objects[0].colour", "expected R,G,B"},
+      {"colour of four numbers", obj + "    colour: [0.2, 0.6, 0.1, 1]\n", 7, "objects[0].colour", "found more"},
+      {"colour out of range", obj + "    colour: [0.2, 255, 0.1]\n", 7, "objects[0].colour",
+       "component G must be a number in 0..1"},
+      {"colour not a number", obj + "    colour: [red, 0, 0]\n", 7, "objects[0].colour", "component R"},
+      {"colour as a mapping", obj + "    colour: {r: 1}\n", 7, "objects[0].colour", "three numbers"},
   };
   for (const BadCase& c : cases) {
     SCOPED_TRACE(c.what);

@@ -1,12 +1,34 @@
 // v4r - robust model-based object tracking. MIT licence.
 #include "v4r/model/model_colour.hpp"
 
+#include <charconv>
 #include <utility>
 #include <vector>
 
 #include <Eigen/Geometry>
+#include <fmt/format.h>
 
 namespace v4r::model {
+
+Expected<Eigen::Vector3f> parse_colour(std::string_view spec, const std::string& source) {
+  Eigen::Vector3f rgb;
+  std::size_t start = 0;
+  for (int c = 0; c < 3; ++c) {
+    const std::size_t comma = spec.find(',', start);
+    if (c < 2 && comma == std::string_view::npos)
+      return make_error(source, 0, 0, fmt::format("'{}': expected R,G,B, three numbers in 0..1 (e.g. 0.2,0.6,0.1)", spec));
+    if (c == 2 && comma != std::string_view::npos)
+      return make_error(source, 0, 0, fmt::format("'{}': expected three values R,G,B, found more", spec));
+    const std::string_view part = spec.substr(start, c == 2 ? std::string_view::npos : comma - start);
+    double v = 0.0;
+    const auto [ptr, ec] = std::from_chars(part.data(), part.data() + part.size(), v);
+    if (part.empty() || ec != std::errc() || ptr != part.data() + part.size() || !(v >= 0.0 && v <= 1.0))
+      return make_error(source, 0, 0, fmt::format("'{}': component {} must be a number in 0..1, found '{}'", spec, "RGB"[c], part));
+    rgb[c] = static_cast<float>(v);
+    start = comma + 1;
+  }
+  return rgb;
+}
 
 Model with_face_colour(const Model& m, const Eigen::Vector3f& rgb) {
   Model out = m;

@@ -4,6 +4,7 @@
 #include <algorithm>
 
 #include "v4r/core/log.hpp"
+#include "v4r/detection/tag_start.hpp"
 #include "v4r/detection/template_cache.hpp"
 
 namespace v4r::server {
@@ -113,7 +114,16 @@ void ServiceSearch::refresh(scene::Scene& scene) {
       searched_[i] = objs[i].model.get();
       searched_names_[i] = objs[i].name;
       const auto it = entries_.find(searched_[i]);
-      if (it != entries_.end() && it->second.templates) search->add_object(scene, i, it->second.templates);
+      if (it == entries_.end() || !it->second.templates) continue;
+      search->add_object(scene, i, it->second.templates);
+      if (const auto tag = tags_.find(objs[i].name); tag != tags_.end()) {
+        auto start = detection::TagStart::create(tag->second, cam_, sp_.tag);
+        if (start) {
+          search->set_tag_start(i, std::move(*start));
+        } else {
+          V4R_LOG_ERROR("v4r serve: the tag of object '{}' is not used: {}", objs[i].name, start.error().to_string());
+        }
+      }
     }
     if (background_) {
       background_->set_search(std::move(search), objs.size());  // results for the objects before are dropped

@@ -83,6 +83,9 @@ TrackingService::TrackingService(ServiceOptions opt, std::vector<std::unique_ptr
   if (opt_.search.enabled)
     search_ = std::make_unique<ServiceSearch>(params_, opt_.search, opt_.detect, opt_.camera, opt_.cache_dir,
                                               opt_.search_hook);
+  if (search_)
+    for (const StartObject& so : opt_.objects)
+      if (so.tag) search_->set_tag(so.name, *so.tag);
   add_start_objects();  // after the search: a start object without a pose is searched for
   if (opt_.object_hook) cycle_.set_object_hook([hook = opt_.object_hook](const scene::Object& o) { hook(o.name); });
 }

@@ -9,12 +9,14 @@
 #include <filesystem>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <stop_token>
 #include <string>
 #include <vector>
 
 #include <gtest/gtest.h>
 
+#include "../../detection/tests/tag_scenes.hpp"
 #include "v4r/detection/symmetry.hpp"
 #include "v4r/detection/template_cache.hpp"
 #include "v4r/detection/template_set.hpp"
@@ -158,7 +160,11 @@ geometry::SE3 to_se3(const protocol::ObjectPoseEvent& e) {
   return geometry::SE3(Eigen::Quaterniond(e.q[0], e.q[1], e.q[2], e.q[3]), Eigen::Vector3d(e.t[0], e.t[1], e.t[2]));
 }
 
-std::unique_ptr<TrackingService> make_service(Latch& latch, Seen& seen, bool background = true) {
+/// The service on the world's frames (or `frames`); `box_tag`: the box's StartObject has this tag
+/// (the scene file's `tag:`).
+std::unique_ptr<TrackingService> make_service(Latch& latch, Seen& seen, bool background = true,
+                                              const std::optional<detection::TagSpec>& box_tag = {},
+                                              const std::vector<cv::Mat>* frames = nullptr) {
   const World& w = world();
   ServiceOptions o;
   o.camera = w.cam;
@@ -166,10 +172,10 @@ std::unique_ptr<TrackingService> make_service(Latch& latch, Seen& seen, bool bac
   o.detect = w.detect;
   o.cache_dir = w.cache.string();
   o.search.background = background;
-  o.objects.push_back(StartObject{"flange", w.flange, w.T_flange, true});
-  o.objects.push_back(StartObject{"box", w.box, geometry::SE3(), false});  // no pose: searched
+  o.objects.push_back(StartObject{"flange", w.flange, w.T_flange, true, {}});
+  o.objects.push_back(StartObject{"box", w.box, geometry::SE3(), false, box_tag});  // no pose: searched
   o.search_hook = [&latch](std::stop_token st) { latch.hook(st); };
-  auto s = std::make_unique<TrackingService>(std::move(o), std::make_unique<LoopSource>(w.frames));
+  auto s = std::make_unique<TrackingService>(std::move(o), std::make_unique<LoopSource>(frames ? *frames : w.frames));
   s->set_frame_callback([&seen](std::shared_ptr<const FrameEvents> ev) { seen.add(*ev); });
   EXPECT_TRUE(s->open());
   return s;
@@ -359,6 +365,57 @@ TEST(BackgroundSearch, WithoutBackgroundTheSearchRunsOnTheCycleThreadAsBefore) {
   std::scoped_lock lock(seen.m);
   expect_near(to_se3(seen.box.back()), w.T_box, w.box_symmetries, "box");
   EXPECT_EQ(latch.entered, 0);
+}
+
+TEST(BackgroundSearch, AStartObjectsTagGivesTheTruePoseWhereTheTemplatesGiveASymmetricOne) {
+  // `v4r serve --scene` with an object's `tag:`. The box is seen from azimuth 220 degrees, outside
+  // the templates' 0-90: the detector alone finds its symmetric twin (turned 180 degrees about z,
+  // azimuth 40). With its tag on the top face the search takes the tag's pose: the true one.
+  const World& w = world();
+  auto tag = detection::parse_tag_spec("tag36h11:0:0.08:0 0 0.05 3.14159265 0 0", "test");
+  ASSERT_TRUE(tag) << tag.error().to_string();
+  const geometry::SE3 T_box = pose_at(*w.box, w.cam, 0.75, 220, 40, 190, 250);
+  synth::RenderOptions ro;
+  ro.seed = 7;
+  synth::Renderer r(w.cam, ro);
+  std::vector<cv::Mat> frames;
+  for (int i = 0; i < 4; ++i) {
+    synth::FrameInfo info;
+    cv::Mat img = r.render(*w.flange, w.T_flange, i);
+    const cv::Mat b = r.render(*w.box, T_box, i, nullptr, &info);
+    b.copyTo(img, info.object_mask);
+    detection::scenes::paint_tag(img, detection::scenes::tag36h11_bitmap(0), tag->size_m, T_box * tag->T_obj_tag, w.cam);
+    frames.push_back(img);
+  }
+  for (const bool with_tag : {true, false}) {
+    SCOPED_TRACE(with_tag ? "with the tag" : "without the tag");
+    Latch latch;  // never holds
+    Seen seen;
+    auto service = make_service(latch, seen, true, with_tag ? std::optional(*tag) : std::nullopt, &frames);
+    service->start();
+    std::size_t found = 0;
+    ASSERT_TRUE(seen.wait(120s, [&] {
+      for (std::size_t i = 0; i < seen.box.size(); ++i)
+        if (seen.box[i].status == protocol::TrackStatus::kTracking) {
+          found = i;
+          return seen.box.size() >= i + 5;
+        }
+      return false;
+    })) << "the box was not found";
+    std::scoped_lock lock(seen.m);
+    for (std::size_t i = found; i < found + 5; ++i) {
+      const std::string what = "box, frame " + std::to_string(seen.box[i].frame);
+      EXPECT_EQ(seen.box[i].status, protocol::TrackStatus::kTracking) << what;
+      expect_near(to_se3(seen.box[i]), T_box, w.box_symmetries, what);  // right modulo symmetry either way
+      const detection::PoseError e = detection::symmetric_pose_error(to_se3(seen.box[i]), T_box, {geometry::SE3()});
+      if (with_tag) {
+        EXPECT_LE(e.rotation, 2.0 * kDeg) << what << ": the tag tells the symmetric poses apart";
+      } else {
+        // The check that the scene tests the tag: without it, the symmetric twin.
+        EXPECT_GT(e.rotation, 90.0 * kDeg) << what << ": the true pose without the tag: this scene does not test it";
+      }
+    }
+  }
 }
 
 }  // namespace

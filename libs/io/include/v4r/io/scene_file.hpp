@@ -5,7 +5,10 @@
 #include <string>
 #include <vector>
 
+#include <Eigen/Core>
+
 #include "v4r/core/expected.hpp"
+#include "v4r/detection/tag_spec.hpp"
 #include "v4r/geometry/camera.hpp"
 #include "v4r/geometry/se3.hpp"
 #include "v4r/io/pose_io.hpp"
@@ -41,7 +44,12 @@ struct SceneObjectSpec {
   double scale = 1.0;                    ///< model units -> metres (mesh_scale or model_units)
   std::optional<geometry::SE3> init_pose;  ///< T_ref_obj; nothing: the object must be found first
   std::optional<PoseNumbers> init_numbers;  ///< init_pose as written (for plausibility checks)
-  SceneFileMark at, model_at;            ///< the entry and its `model` field
+  /// `tag: "family:id:size_m:tx ty tz rx ry rz"` (as `--tag`): an AprilTag on the object that
+  /// starts its search (camera 0).
+  std::optional<detection::TagSpec> tag;
+  /// `colour: [R, G, B]` (0..1, as `--colour`): every face of the model gets it.
+  std::optional<Eigen::Vector3f> colour;
+  SceneFileMark at, model_at, tag_at;    ///< the entry, its `model` field and its `tag` field
 };
 
 /// \brief A multi-camera, multi-object set-up as read from a scene file (YAML):
@@ -57,6 +65,8 @@ struct SceneObjectSpec {
 ///         model: part.cao           # or a mesh (.obj, .ply, .stl)
 ///         mesh_scale: 0.001         # optional, or model_units: mm | cm | m
 ///         init_pose: [0.05, 0.1, 0.6, 2.0, 0.1, -0.5]   # T_ref_obj; optional
+///         tag: "tag36h11:0:0.08:0 0 0.05 3.14159 0 0"   # optional, as --tag
+///         colour: [0.2, 0.6, 0.1]   # optional, as --colour (RGB, 0..1)
 ///
 /// Relative paths are taken relative to the scene file's folder. `input` is optional (the server
 /// takes its images elsewhere), `objects` too; at least one camera is required.

@@ -2,12 +2,19 @@
 #pragma once
 
 #include <optional>
+#include <string>
+#include <string_view>
 
 #include <Eigen/Core>
 
+#include "v4r/core/expected.hpp"
 #include "v4r/model/model.hpp"
 
 namespace v4r::model {
+
+/// Parses a face colour `R,G,B`: three numbers in [0, 1], e.g. 0.2,0.6,0.1 (`--colour`, the
+/// scene file's `colour:`). An error names `source` (the option or field) and the component at fault.
+Expected<Eigen::Vector3f> parse_colour(std::string_view spec, const std::string& source);
 
 /// A copy of `m` whose every face (and cylinder) has the colour `rgb` (RGB, each in [0, 1]),
 /// replacing the colours it had: `--colour` on the command line, for models without one.

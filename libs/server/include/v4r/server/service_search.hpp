@@ -11,6 +11,7 @@
 #include <thread>
 #include <vector>
 
+#include "v4r/detection/tag_spec.hpp"
 #include "v4r/detection/template_set.hpp"
 #include "v4r/pipeline/background_search.hpp"
 #include "v4r/pipeline/object_search.hpp"
@@ -42,6 +43,9 @@ class ServiceSearch {
   void before_cycle(scene::Scene& scene);
   /// After the frame's cycle, on the tracking thread.
   void update(scene::Scene& scene, std::span<const pipeline::CameraImage> images, double stamp_s);
+  /// The object named `name` (now or when added later) has this AprilTag: its search starts from
+  /// the tag (pipeline::ObjectSearch::set_tag_start, camera 0). Before the first update().
+  void set_tag(const std::string& name, const detection::TagSpec& tag) { tags_[name] = tag; }
   /// Templates of `model` are ready (or could not be built); for tests.
   [[nodiscard]] bool ready(const model::Model* model) const;
   /// The worker's search (null without search.background); for tests and benchmarks.
@@ -65,6 +69,7 @@ class ServiceSearch {
   std::map<const model::Model*, Entry> entries_;  // tracking thread only
   std::vector<const model::Model*> searched_;     // scene object models the search was set up for
   std::vector<std::string> searched_names_;       // ... and their names
+  std::map<std::string, detection::TagSpec> tags_;  // object name -> its tag (set_tag)
   std::unique_ptr<pipeline::ObjectSearch> search_;  // on the tracking thread (not search.background)
   std::unique_ptr<pipeline::BackgroundSearch> background_;  // search.background
 

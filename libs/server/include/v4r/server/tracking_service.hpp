@@ -9,6 +9,7 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <thread>
 #include <variant>
@@ -39,6 +40,8 @@ struct StartObject {
   std::shared_ptr<const model::Model> model;
   geometry::SE3 T_ref_obj;  ///< its start pose in the reference frame
   bool has_pose = true;     ///< false: no start pose, the object is searched for (as without SetPose)
+  /// The scene file's `tag:`: the object's AprilTag, which starts its search (the first camera).
+  std::optional<detection::TagSpec> tag;
 };
 
 /// \brief Set-up of the tracking thread.
