@@ -63,7 +63,7 @@ struct Data {
   std::vector<NormalObservation> normals;
   std::array<std::vector<std::uint8_t>, 5> outlier;  ///< points, lines, circles, points3d, normals
 
-  ObservationSet set() const { return {points, lines, circles, points3d, normals}; }
+  ObservationSet set() const { return {points, lines, circles, points3d, normals, nullptr, {}}; }
 };
 
 /// \brief Inlier flags of one solve, by type.
