@@ -19,6 +19,7 @@
 
 #include <unistd.h>
 
+#include "v4r/io/loop_source.hpp"
 #include "v4r/detection/template_cache.hpp"
 #include "v4r/detection/template_set.hpp"
 #include "v4r/geometry/look_at.hpp"
@@ -33,21 +34,7 @@ using namespace v4r;
 
 constexpr int kFrames = 150;
 
-/// An endless input: a few renders of the same static scene, in turn.
-class LoopSource final : public io::FrameSource {
- public:
-  explicit LoopSource(std::vector<cv::Mat> frames) : frames_(std::move(frames)) {}
-  Expected<bool> next(cv::Mat& bgr) override {
-    bgr = frames_[static_cast<std::size_t>(index_++) % frames_.size()];
-    return true;
-  }
-  [[nodiscard]] std::string current_name() const override { return "loop#" + std::to_string(index_); }
-  [[nodiscard]] int size_hint() const override { return -1; }
-
- private:
-  std::vector<cv::Mat> frames_;
-  long index_ = 0;
-};
+using io::LoopSource;
 
 struct Scene {
   geometry::PinholeCamera cam = synth::default_camera();

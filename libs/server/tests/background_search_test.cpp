@@ -17,6 +17,7 @@
 #include <gtest/gtest.h>
 
 #include "../../detection/tests/tag_scenes.hpp"
+#include "v4r/io/loop_source.hpp"
 #include "v4r/detection/symmetry.hpp"
 #include "v4r/detection/template_cache.hpp"
 #include "v4r/detection/template_set.hpp"
@@ -32,21 +33,7 @@ namespace fs = std::filesystem;
 using namespace std::chrono_literals;
 constexpr double kDeg = 3.14159265358979323846 / 180.0;
 
-/// An endless input: a few renders of the same static scene (different sensor noise), in turn.
-class LoopSource final : public io::FrameSource {
- public:
-  explicit LoopSource(std::vector<cv::Mat> frames) : frames_(std::move(frames)) {}
-  Expected<bool> next(cv::Mat& bgr) override {
-    bgr = frames_[static_cast<std::size_t>(index_++) % frames_.size()];
-    return true;
-  }
-  [[nodiscard]] std::string current_name() const override { return "loop#" + std::to_string(index_); }
-  [[nodiscard]] int size_hint() const override { return -1; }
-
- private:
-  std::vector<cv::Mat> frames_;
-  long index_ = 0;
-};
+using io::LoopSource;
 
 /// T_cam_obj of `m` seen from (azimuth, elevation) at `dist` metres, its centre at pixel (u, v).
 geometry::SE3 pose_at(const model::Model& m, const geometry::PinholeCamera& cam, double dist, double az_deg,
@@ -154,6 +141,18 @@ struct Seen {
     std::unique_lock lock(m);
     return cv.wait_for(lock, timeout, pred);
   }
+  /// Waits (up to `timeout`) until the box is `tracking` and 5 of its rows are in from then on;
+  /// `found` gets the row where it turned `tracking`.
+  bool wait_box_tracking(std::chrono::seconds timeout, std::size_t& found) {
+    return wait(timeout, [&] {
+      for (std::size_t i = 0; i < box.size(); ++i)
+        if (box[i].status == protocol::TrackStatus::kTracking) {
+          found = i;
+          return box.size() >= i + 5;
+        }
+      return false;
+    });
+  }
 };
 
 geometry::SE3 to_se3(const protocol::ObjectPoseEvent& e) {
@@ -217,14 +216,7 @@ TEST(BackgroundSearch, OtherObjectsKeepTrackingWhileOneIsSearchedAndItIsFoundWhe
   // Released, the worker finds the box (a candidate, confirmed on its next frame).
   latch.release();
   std::size_t found = 0;
-  ASSERT_TRUE(seen.wait(120s, [&] {
-    for (std::size_t i = 0; i < seen.box.size(); ++i)
-      if (seen.box[i].status == protocol::TrackStatus::kTracking) {
-        found = i;
-        return seen.box.size() >= i + 5;
-      }
-    return false;
-  })) << "the box was not found";
+  ASSERT_TRUE(seen.wait_box_tracking(120s, found)) << "the box was not found";
   {
     std::scoped_lock lock(seen.m);
     std::printf("[background search] box tracking at frame %llu after %lld worker frames\n",
@@ -394,14 +386,7 @@ TEST(BackgroundSearch, AStartObjectsTagGivesTheTruePoseWhereTheTemplatesGiveASym
     auto service = make_service(latch, seen, true, with_tag ? std::optional(*tag) : std::nullopt, &frames);
     service->start();
     std::size_t found = 0;
-    ASSERT_TRUE(seen.wait(120s, [&] {
-      for (std::size_t i = 0; i < seen.box.size(); ++i)
-        if (seen.box[i].status == protocol::TrackStatus::kTracking) {
-          found = i;
-          return seen.box.size() >= i + 5;
-        }
-      return false;
-    })) << "the box was not found";
+    ASSERT_TRUE(seen.wait_box_tracking(120s, found)) << "the box was not found";
     std::scoped_lock lock(seen.m);
     for (std::size_t i = found; i < found + 5; ++i) {
       const std::string what = "box, frame " + std::to_string(seen.box[i].frame);
