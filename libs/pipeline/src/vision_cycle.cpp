@@ -29,6 +29,8 @@ void VisionCycle::set_params(const CycleParams& params) {
 }
 
 const std::vector<Eigen::Vector2d>& VisionCycle::edgels(std::size_t camera) const {
+  // One thread: its unit's own; several: their merge (process()).
+  if (units_.size() == 1) return units_[0]->edgels(camera);
   static const std::vector<Eigen::Vector2d> kEmpty;
   return camera < edgels_.size() ? edgels_[camera] : kEmpty;
 }
@@ -39,11 +41,13 @@ void VisionCycle::prepare(const scene::Scene& scene) {
   for (const auto& u : units_) u->reserve(scene);
   budget_.reserve(total);
   if (measured_.capacity() < scene.objects().size()) measured_.reserve(scene.objects().size());
-  if (edgels_.size() < scene.cameras().size()) edgels_.resize(scene.cameras().size());
-  const std::size_t per_camera =
-      std::max<std::size_t>(1, total) * static_cast<std::size_t>(p_.track.rows + 2 * scene::ArcFeature::kMaxSamples);
-  for (auto& e : edgels_)
-    if (e.capacity() < per_camera) e.reserve(per_camera);
+  if (units_.size() > 1) {  // the units' edge pixels merged (edgels())
+    if (edgels_.size() < scene.cameras().size()) edgels_.resize(scene.cameras().size());
+    const std::size_t per_camera =
+        std::max<std::size_t>(1, total) * static_cast<std::size_t>(p_.track.rows + 2 * scene::ArcFeature::kMaxSamples);
+    for (auto& e : edgels_)
+      if (e.capacity() < per_camera) e.reserve(per_camera);
+  }
   if (report_.objects.size() != scene.objects().size()) report_.objects.resize(scene.objects().size());
 }
 
@@ -223,13 +227,13 @@ const CycleReport& VisionCycle::process(scene::Scene& scene, std::span<const Cam
   } else {
     for (const std::size_t oi : measured_) measure_object(scene, images, oi, 0, stamp_s);
   }
-  // The units' counters and edge pixels, summed.
+  // The units' counters summed, and (several units) their edge pixels merged.
   for (const auto& u : units_) {
     ctx_.samples += u->context().samples;
     ctx_.windows += u->context().windows;
     report_.track_ms += u->track_ms();
     report_.solve_ms += u->solve_ms();
-    for (std::size_t c = 0; c < edgels_.size(); ++c) {
+    for (std::size_t c = 0; units_.size() > 1 && c < edgels_.size(); ++c) {
       const auto& e = u->edgels(c);
       const std::size_t room = edgels_[c].capacity() - edgels_[c].size();
       edgels_[c].insert(edgels_[c].end(), e.begin(), e.begin() + static_cast<std::ptrdiff_t>(std::min(room, e.size())));

@@ -54,7 +54,10 @@ class ObjectMeasurer {
   [[nodiscard]] double track_ms() const { return track_ms_; }
   [[nodiscard]] double solve_ms() const { return solve_ms_; }
   /// Edge pixels this unit measured in the frame, per camera.
-  [[nodiscard]] const std::vector<Eigen::Vector2d>& edgels(std::size_t camera) const { return edgels_[camera]; }
+  [[nodiscard]] const std::vector<Eigen::Vector2d>& edgels(std::size_t camera) const {
+    static const std::vector<Eigen::Vector2d> kEmpty;
+    return camera < edgels_.size() ? edgels_[camera] : kEmpty;
+  }
 
  private:
   struct TrackStep {
