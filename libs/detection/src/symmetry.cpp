@@ -24,12 +24,29 @@ std::vector<geometry::SE3> model_symmetries(const model::Model& model, double to
     hi = hi.cwiseMax(j.p);
   }
   const Eigen::Vector3d c = model.junctions().empty() ? Eigen::Vector3d::Zero() : Eigen::Vector3d(0.5 * (lo + hi));
-  // Junctions, edge mid-points and arc centres stand for the features; cylinders by their axis ends.
+  // Edge end points and mid-points and arc centres stand for the features; cylinders by their axis
+  // ends. (Points that only place a circle, such as a .cao circle's two points on its rim, are
+  // not features: the circle maps onto itself whatever happens to them.)
   std::vector<Eigen::Vector3d> pts, mids, arcs;
-  for (const auto& j : model.junctions()) pts.push_back(j.p);
-  for (std::size_t i = 0; i < model.lines().size(); ++i)
-    mids.push_back(0.5 * (model.line_point_a(static_cast<model::Index>(i)) + model.line_point_b(static_cast<model::Index>(i))));
-  for (const auto& a : model.arcs()) arcs.push_back(a.center);
+  for (std::size_t i = 0; i < model.lines().size(); ++i) {
+    const Eigen::Vector3d a = model.line_point_a(static_cast<model::Index>(i));
+    const Eigen::Vector3d b = model.line_point_b(static_cast<model::Index>(i));
+    if (!has_point(pts, a, tol)) pts.push_back(a);
+    if (!has_point(pts, b, tol)) pts.push_back(b);
+    mids.push_back(0.5 * (a + b));
+  }
+  // An arc by its centre and the two points a radius along its normal either way (radius and
+  // plane), a partial arc also by its ends and middle.
+  for (const auto& a : model.arcs()) {
+    arcs.push_back(a.center);
+    arcs.push_back(a.center + a.radius * a.normal);
+    arcs.push_back(a.center - a.radius * a.normal);
+    if (a.end - a.start < 2.0 * M_PI - 1e-9) {
+      const Eigen::Vector3d y = a.normal.cross(a.x_axis);
+      for (const double t : {a.start, 0.5 * (a.start + a.end), a.end})
+        arcs.push_back(a.center + a.radius * (std::cos(t) * a.x_axis + std::sin(t) * y));
+    }
+  }
   std::vector<geometry::SE3> out;
   // The 24 signed permutation matrices with determinant +1.
   const int perms[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
@@ -68,6 +85,21 @@ PoseError symmetric_pose_error(const geometry::SE3& estimate, const geometry::SE
   };
   consider(truth);
   for (const auto& S : symmetries) consider(truth * S);
+  return best;
+}
+
+geometry::SE3 nearest_symmetric(const geometry::SE3& T, const geometry::SE3& reference,
+                                const std::vector<geometry::SE3>& symmetries) {
+  geometry::SE3 best = T;
+  double best_cost = geometry::rotation_angle_between(T, reference) + 10.0 * (T.translation() - reference.translation()).norm();
+  for (const auto& S : symmetries) {
+    const geometry::SE3 TS = T * S;
+    const double cost = geometry::rotation_angle_between(TS, reference) + 10.0 * (TS.translation() - reference.translation()).norm();
+    if (cost < best_cost) {
+      best_cost = cost;
+      best = TS;
+    }
+  }
   return best;
 }
 

@@ -99,6 +99,35 @@ TEST(Symmetry, BoxHasFourFlangeFourPlainRotations) {
   EXPECT_TRUE(s[0].translation().norm() < 1e-12 || s.size() > 1);
 }
 
+// A flange as CAD exports write it (the independent benchmark's): faces only, and a circle placed
+// by two points on its rim. Those two points are not features: the model keeps its four turns.
+TEST(Symmetry, CirclesRimPointsDoNotBreakTheSymmetryAndTheNearestTurnIsChosen) {
+  const std::string cao =
+      "V1\n12\n-0.05 -0.05 0\n-0.05 0.05 0\n0.05 0.05 0\n0.05 -0.05 0\n-0.05 -0.05 0.02\n"
+      "0.05 -0.05 0.02\n0.05 0.05 0.02\n-0.05 0.05 0.02\n0 0 0.02\n0 0 0.05\n0.03 0 0.05\n0 0.03 0.05\n"
+      "0\n0\n6\n4 0 1 2 3\n4 4 5 6 7\n4 0 3 5 4\n4 2 1 7 6\n4 1 0 4 7\n4 3 2 6 5\n"
+      "1\n8 9 0.03\n1\n0.03 9 10 11\n";
+  const auto flange = std::move(*model::parse_cao(cao, "f"));
+  const auto sym = model_symmetries(flange);
+  ASSERT_EQ(sym.size(), 4u);
+  // A pose found a quarter turn from the one last seen is reported as the last one's equivalent.
+  const geometry::SE3 last(Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d(1, 2, 0).normalized())),
+                           Eigen::Vector3d(0.05, -0.02, 0.5));
+  const geometry::SE3 turned = last * geometry::SE3(Eigen::Quaterniond(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ())),
+                                                    Eigen::Vector3d::Zero());
+  const geometry::SE3 moved = geometry::SE3(Eigen::Quaterniond(Eigen::AngleAxisd(0.05, Eigen::Vector3d::UnitY())),
+                                            Eigen::Vector3d(0.01, 0, 0)) * turned;
+  const geometry::SE3 n = nearest_symmetric(moved, last, sym);
+  EXPECT_LT(geometry::rotation_angle_between(n, last), 0.06);
+  EXPECT_GT(geometry::rotation_angle_between(moved, last), 1.5);
+  // The equivalent is the same object in the image: its pose differs by a symmetry only.
+  EXPECT_LT(symmetric_pose_error(n, moved, sym).rotation, 1e-9);
+  // A box (no quarter turns) is left as it is by a quarter turn.
+  const auto box = std::move(*model::parse_cao(synth::box_cao(), "b"));
+  const geometry::SE3 nb = nearest_symmetric(moved, last, model_symmetries(box));
+  EXPECT_LT(geometry::rotation_angle_between(nb, moved), 1e-9);
+}
+
 TEST(Detector, FindsTheBoxOnPlainTexturedAndNoisyImages) {
   const Fixture f = make(synth::box_cao);
   int ok = 0, wrong = 0, n = 0;

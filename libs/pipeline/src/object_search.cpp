@@ -184,10 +184,11 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
     const bool close = e >= 0.0 && (T.translation() - s.T_candidate.translation()).norm() <= p_.confirm_translation_m &&
                        geometry::rotation_angle_between(T, s.T_candidate) <= p_.confirm_rotation_deg * kDeg;
     if (close) {
-      T_cam_found = T;
+      // A symmetric object is reported in the equivalent pose nearest to where it was last seen.
+      T_cam_found = s.have_last ? detection::nearest_symmetric(T, s.T_last, s.symmetries) : T;
       s.have_candidate = false;
       s.have_last = true;
-      s.T_last = T;
+      s.T_last = T_cam_found;
       s.search_frames = 0;
       rep.found = rep.locked = true;
       rep.best_evidence = best_evidence;

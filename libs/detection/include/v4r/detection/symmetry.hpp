@@ -24,4 +24,11 @@ struct PoseError {
 PoseError symmetric_pose_error(const geometry::SE3& estimate, const geometry::SE3& truth,
                                const std::vector<geometry::SE3>& symmetries);
 
+/// \brief Of the poses `T * S` (S from model_symmetries, identity included) the one nearest to
+/// `reference` (rotation angle first, then translation, as symmetric_pose_error orders them): the
+/// image cannot tell them apart, continuity can (an object found again after a loss is reported in
+/// the equivalent pose nearest to where it was last seen).
+geometry::SE3 nearest_symmetric(const geometry::SE3& T, const geometry::SE3& reference,
+                                const std::vector<geometry::SE3>& symmetries);
+
 }  // namespace v4r::detection
