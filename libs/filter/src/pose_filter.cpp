@@ -104,6 +104,26 @@ void PoseFilter::predict(double dt) {
   symmetrise(P_);
 }
 
+double PoseFilter::velocity_chi2() const {
+  if (!initialised_) return kInvalidChi2;
+  const Eigen::LLT<Matrix6d> llt(P_.bottomRightCorner<6, 6>());
+  if (llt.info() != Eigen::Success) return kInvalidChi2;
+  const double chi2 = vel_.dot(llt.solve(vel_));
+  return std::isfinite(chi2) && chi2 >= 0.0 ? chi2 : kInvalidChi2;
+}
+
+void PoseFilter::hold_still(double velocity_sigma, double angular_velocity_sigma) {
+  if (!initialised_ || !std::isfinite(velocity_sigma) || !std::isfinite(angular_velocity_sigma)) return;
+  vel_.setZero();
+  P_.topRightCorner<6, 6>().setZero();
+  P_.bottomLeftCorner<6, 6>().setZero();
+  P_.bottomRightCorner<6, 6>().setZero();
+  for (int i = 0; i < 3; ++i) {
+    P_(6 + i, 6 + i) = velocity_sigma * velocity_sigma;
+    P_(9 + i, 9 + i) = angular_velocity_sigma * angular_velocity_sigma;
+  }
+}
+
 double PoseFilter::innovation_chi2(const SE3& T_meas, const Matrix6d& cov) const {
   if (!initialised_ || !finite(T_meas) || !cov.allFinite()) return kInvalidChi2;
   const Vector6d y = (T_meas * T_.inverse()).log();

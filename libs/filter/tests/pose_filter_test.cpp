@@ -538,3 +538,56 @@ TEST(PoseFilter, AdaptiveNoiseHoldsARestingObjectStillAndFollowsAJumpAtOnce) {
   EXPECT_DOUBLE_EQ(f.noise_scale(), 1.0);
   EXPECT_GT(f.pose().translation().x(), 0.004);
 }
+
+// velocity_chi2() is small at rest and large for a steady motion the filter has measured;
+// hold_still() makes an adaptive filter at rest average the measurements (the pose is not the
+// end of a line fitted through them) and never allocates.
+TEST(PoseFilter, VelocityChi2AndHoldStill) {
+  PoseFilterParams p;
+  p.adapt_noise = true;
+  PoseFilter full(PoseFilterParams{}), held(p), free(p);
+  const SE3 truth(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.0, 0.0, 0.5));
+  Matrix6d R = Matrix6d::Zero();
+  R.diagonal() << 1e-8, 1e-8, 4e-8, 1e-6, 1e-6, 1e-6;  // 0.1 / 0.2 mm, 0.06 deg
+  for (PoseFilter* f : {&full, &held, &free}) f->reset(truth, R);
+  std::mt19937 rng(5);
+  std::normal_distribution<double> g(0.0, 1.0);
+  double se_held = 0.0, se_free = 0.0;
+  int n = 0, quiet = 0;
+  for (int k = 0; k < 60; ++k) {
+    Vector6d e;
+    for (int i = 0; i < 6; ++i) e[i] = g(rng) * std::sqrt(R(i, i));
+    const SE3 meas = SE3::exp(e) * truth;
+    for (PoseFilter* f : {&full, &held, &free}) f->predict(1.0 / 30.0);
+    full.update(meas, R);
+    if (full.velocity_chi2() <= 4.0) ++quiet;  // at rest, the velocity is insignificant
+    held.hold_still(1e-4, 1e-3);
+    held.update(meas, R);
+    free.update(meas, R);
+    if (k >= 10) {
+      se_held += (held.pose().translation() - truth.translation()).squaredNorm();
+      se_free += (free.pose().translation() - truth.translation()).squaredNorm();
+      ++n;
+    }
+  }
+  EXPECT_GE(quiet, 57);  // of 60 frames
+  EXPECT_LT(std::sqrt(se_held / n), 0.9 * std::sqrt(se_free / n));  // 0.46 vs 0.55 mm
+  held.hold_still(1e-4, 1e-3);
+  EXPECT_EQ(held.velocity(), Vector6d::Zero());
+  EXPECT_DOUBLE_EQ(held.covariance()(6, 6), 1e-8);
+  EXPECT_DOUBLE_EQ(held.covariance()(9, 9), 1e-6);
+  EXPECT_TRUE((held.covariance().topRightCorner<6, 6>().isZero()));
+  // A steady motion of 1 cm per frame: the velocity becomes significant.
+  SE3 T = truth;
+  for (int k = 0; k < 10; ++k) {
+    T = SE3(Eigen::Quaterniond::Identity(), T.translation() + Eigen::Vector3d(0.01, 0.0, 0.0));
+    full.predict(1.0 / 30.0);
+    full.update(T, R);
+  }
+  EXPECT_GT(full.velocity_chi2(), 20.0);  // (54: far above a resting object's)
+  // Before initialisation: nothing to test, nothing changed.
+  PoseFilter none;
+  EXPECT_EQ(none.velocity_chi2(), PoseFilter::kInvalidChi2);
+  none.hold_still(1e-4, 1e-3);
+  EXPECT_FALSE(none.initialised());
+}

@@ -60,6 +60,8 @@ ObjectSolve ObjectSolver::solve(const geometry::SE3& T_init, ObservationBuffer& 
   const Eigen::SelfAdjointEigenSolver<geometry::Matrix6d> es(info);
   const geometry::Vector6d ev = es.eigenvalues().cwiseMax(1e-9 * std::max(es.eigenvalues().maxCoeff(), 1e-30));
   out.information = es.eigenvectors() * ev.asDiagonal() * es.eigenvectors().transpose();
+  const double s_report = std::max(result.sigma0, p_.report_min_sigma0);
+  out.report_scale = (s_report * s_report) / (s0 * s0);
   return out;
 }
 

@@ -12,18 +12,20 @@ namespace v4r::pipeline {
 ObjectMeasurement combine_solves(std::span<const ObjectSolve> solves) {
   ObjectMeasurement m;
   geometry::SE3 T0;
-  geometry::Matrix6d info_sum = geometry::Matrix6d::Zero();
+  geometry::Matrix6d info_sum = geometry::Matrix6d::Zero(), report_info = geometry::Matrix6d::Zero();
   geometry::Vector6d info_xi = geometry::Vector6d::Zero();
   for (const ObjectSolve& s : solves) {
     if (!s.updated) continue;
     if (m.solves == 0) T0 = s.T_ref_obj;
     m.prior_used = m.prior_used || s.prior_used;
     info_sum += s.information;
+    report_info += s.information / s.report_scale;
     info_xi += s.information * (s.T_ref_obj * T0.inverse()).log();
     ++m.solves;
   }
   if (m.solves == 0) return m;
   m.covariance = info_sum.inverse();
+  m.reported_covariance = report_info.inverse();
   m.T_ref_obj = m.solves == 1 ? T0 : geometry::SE3::exp(m.covariance * info_xi) * T0;
   return m;
 }
@@ -66,10 +68,16 @@ void update_object(scene::Object& obj, const ObjectMeasurement& m, const CyclePa
         rep.measurement_rejected = true;
       } else {
         obj.filter.update(T_meas, cov_meas + floor);
-        // The reported pose: the smoother's. A measurement it cannot explain even at full noise
-        // (a recovery, a jump) restarts it there.
-        if (p.smooth_output && obj.smoother.update(T_meas, cov_meas + floor) > p.recovery.gate_chi2)
-          obj.smoother.reset(T_meas, cov_meas + floor);
+        // The reported pose: the smoother's. At rest (the tracking filter's velocity is
+        // insignificant) it holds its velocity at zero and averages the measurements; a moving
+        // object is reported where it is measured (the smoother restarts there: no lag), and so
+        // is a measurement the smoother cannot explain even at full noise (a recovery, a jump).
+        if (p.smooth_output) {
+          const bool at_rest = obj.filter.velocity_chi2() <= p.rest_velocity_chi2;
+          if (at_rest) obj.smoother.hold_still(p.rest_velocity_sigma, p.rest_angular_velocity_sigma);
+          if (!at_rest || obj.smoother.update(T_meas, cov_meas + floor) > p.recovery.gate_chi2)
+            obj.smoother.reset(T_meas, cov_meas + floor);
+        }
       }
     }
   }
@@ -77,7 +85,7 @@ void update_object(scene::Object& obj, const ObjectMeasurement& m, const CyclePa
     obj.T_ref_obj = p.use_filter && p.smooth_output && obj.smoother.initialised() ? obj.smoother.pose() : T_meas;
     // Directions held by the prediction carry the filter's covariance, not the (huge) one of
     // the observations alone.
-    obj.covariance = prior_used && p.use_filter ? obj.filter.pose_covariance() : cov_meas;
+    obj.covariance = prior_used && p.use_filter ? obj.filter.pose_covariance() : m.reported_covariance;
     obj.measured = ratio >= p.degraded_ratio && !prior_used ? scene::TrackStatus::kTracking : scene::TrackStatus::kDegraded;
     rep.prior_used = prior_used;
   } else {

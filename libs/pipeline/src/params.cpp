@@ -61,6 +61,8 @@ ParamRegistry make_registry(CycleParams& p) {
   r.add("solver.cauchy_c", &s.cauchy_c, 0.5, 20.0, "sigma", "Cauchy constant of the robust pass");
   r.add("solver.adaptive_threshold", &s.adaptive_threshold, "widen the outlier threshold when sigma is too optimistic");
   r.add("solver.min_sigma0", &s.min_sigma0, 0.0, 10.0, "", "floor of the a-posteriori scale of the covariance");
+  r.add("solver.report_min_sigma0", &p.report_min_sigma0, 0.0, 10.0, "",
+        "floor of the a-posteriori scale of the reported covariance");
   // Visibility.
   auto& v = p.visibility;
   r.add("visibility.appear_angle", &v.appear_angle, 0.0, 1.5707963, "rad", "a hidden face appears below this view angle");
@@ -119,6 +121,11 @@ ParamRegistry make_registry(CycleParams& p) {
   r.add("filter.min_noise_scale", &p.filter.min_noise_scale, 0.0, 1.0, "", "smoother: smallest scale of its process noise");
   r.add("filter.noise_decay", &p.filter.noise_decay, 0.0, 1.0, "", "smoother: noise scale factor per update that shows no motion");
   r.add("filter.motion_chi2", &p.filter.motion_chi2, 0.0, 1e6, "", "smoother: innovation chi^2 (6 dof) that shows motion: full noise at once");
+  r.add("filter.rest_velocity_chi2", &p.rest_velocity_chi2, 0.0, 1e6, "",
+        "smoother: at rest below this velocity chi^2 (6 dof) of the tracking filter (averages), moving above (reports the measurement)");
+  r.add("filter.rest_velocity_sigma", &p.rest_velocity_sigma, 0.0, 10.0, "m/s", "smoother: velocity uncertainty of an object at rest");
+  r.add("filter.rest_angular_velocity_sigma", &p.rest_angular_velocity_sigma, 0.0, 10.0, "rad/s",
+        "smoother: angular velocity uncertainty of an object at rest");
   r.add("filter.frame_interval", &p.frame_interval_s, 1e-4, 10.0, "s", "time between frames without time stamps");
   // Parameters that existed without a name (issue 13: `v4r config` prints every parameter).
   // Not here: ellipse max_samples (from ellipse.samples) and solver focal_px (from the camera).

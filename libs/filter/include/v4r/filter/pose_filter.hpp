@@ -86,6 +86,13 @@ class PoseFilter {
   [[nodiscard]] Matrix12d covariance() const { return P_; }
   [[nodiscard]] geometry::Matrix6d pose_covariance() const { return P_.topLeftCorner<6, 6>(); }
   [[nodiscard]] const PoseFilterParams& params() const { return p_; }
+  /// Significance of the velocity estimate: vel^T P_vel^-1 vel (chi-square with 6 dof for an
+  /// object at rest); kInvalidChi2 before initialisation or for a singular velocity covariance.
+  [[nodiscard]] double velocity_chi2() const;
+  /// At rest (another filter's velocity test says so): the velocity is zero, known to within
+  /// velocity_sigma (m/s) and angular_velocity_sigma (rad/s), uncorrelated with the pose; the
+  /// pose is then an average of the measurements, not the end of a fitted line.
+  void hold_still(double velocity_sigma, double angular_velocity_sigma);
   /// Current scale of the process noise (1 without adaptation).
   [[nodiscard]] double noise_scale() const { return p_.adapt_noise ? noise_scale_ : 1.0; }
   void set_params(const PoseFilterParams& p) { p_ = p; }

@@ -61,6 +61,9 @@ struct CycleParams {
   estimation::PoseSolverParams solver;
   VisibilityParams visibility;
   double line_sigma_px = 0.5;           ///< a-priori noise of a tracked line, pixels
+  /// Floor of the a-posteriori scale of the reported covariance (the solver's min_sigma0 floors
+  /// the one the filter uses, higher to keep it cautious).
+  double report_min_sigma0 = 0.25;
   bool use_junctions = true;            ///< intersect tracked edges at model junctions (paper 3.3)
   double junction_min_angle = 0.35;     ///< radians: smallest angle between edges intersected at a junction
   double junction_sigma_scale = 1.5;    ///< junction sigma = line sigma * this / sin(angle)
@@ -101,6 +104,15 @@ struct CycleParams {
   /// measurements' noise away, a motion restores full noise at once. The tracking filter, which
   /// places the search windows, keeps the full noise. false: the measurement is reported.
   bool smooth_output = true;
+  /// At rest or moving, as the tracking filter's velocity shows (vel^T P_vel^-1 vel, 6 dof;
+  /// with the filter's full process noise it stays below 4 for an object at rest under sensor
+  /// noise, mostly below 1, and far above for a motion of a millimetre per frame). Below: the smoother
+  /// holds its velocity at zero (within rest_velocity_sigma and rest_angular_velocity_sigma)
+  /// and averages the measurements; above: it restarts at each measurement, so a moving object
+  /// is reported where it is measured, with no lag.
+  double rest_velocity_chi2 = 4.0;
+  double rest_velocity_sigma = 1e-4;          ///< m/s: velocity of an object at rest
+  double rest_angular_velocity_sigma = 1e-3;  ///< rad/s: angular velocity of an object at rest
   double frame_interval_s = 1.0 / 30.0;  ///< seconds between frames when no time stamps are given
   /// Threads of the cycle (the calling one included): objects are measured in parallel, or the
   /// views of an object (one per camera) when only one object is tracked. Results are the same

@@ -16,6 +16,10 @@ struct ObjectSolve {
   /// Information of the observations alone, without the prior (reference frame, left tangent;
   /// m^-2, rad^-2): nearly singular in the directions the features do not fix.
   geometry::Matrix6d information = geometry::Matrix6d::Zero();
+  /// The reported covariance is `information`^-1 times this: the solve's a-posteriori variance
+  /// factor with the report's floor (CycleParams::report_min_sigma0) instead of the solver's
+  /// (which protects the filter): (max(sigma0, report floor) / max(sigma0, min_sigma0))^2.
+  double report_scale = 1.0;
   estimation::PoseResult result;  ///< the last solve (its T_cam_obj is T_ref_obj)
 };
 

@@ -16,6 +16,9 @@ struct ObjectMeasurement {
   bool prior_used = false;   ///< some directions were held by the prediction
   geometry::SE3 T_ref_obj;
   geometry::Matrix6d covariance = geometry::Matrix6d::Zero();  ///< reference frame, left tangent
+  /// The covariance reported with the pose (ObjectSolve::report_scale): the same directions, the
+  /// solves' own a-posteriori noise level.
+  geometry::Matrix6d reported_covariance = geometry::Matrix6d::Zero();
 };
 
 /// \brief Combines solves into one measurement: a single solve as it is; several (one per view,
