@@ -93,6 +93,17 @@ class Detector {
   /// The gradients of the last image (for display and diagnosis).
   [[nodiscard]] const GradientPyramid& gradients() const { return pyramid_; }
   [[nodiscard]] const TemplateSet& templates() const { return *templates_; }
+  /// \brief A search candidate of the last detect() (for diagnosis): template view, score (x1000
+  /// of the best possible at its level) and anchor (1/2-resolution pixels).
+  struct CandidateInfo {
+    std::uint32_t view = 0;
+    int score = 0;
+    int x = 0, y = 0;
+  };
+  /// The last detect()'s coarse candidates (ranked by their probe at 1/2 resolution) or its
+  /// picked hypotheses before refinement (`picked`), for diagnosis.
+  [[nodiscard]] std::size_t candidate_count(bool picked) const { return picked ? picked_.size() : coarse_.size(); }
+  [[nodiscard]] CandidateInfo candidate(bool picked, std::size_t i) const;
   /// The colour stage, or nullptr when the model has no face colour or it is disabled.
   [[nodiscard]] const ColourRegions* colour_regions() const { return colour_.get(); }
 
@@ -108,8 +119,14 @@ class Detector {
   PixelBox colour_roi() const;
   void coarse_search();
   /// Scores coarse template k at the anchors (2i, 2j), i in [ilo, ihi], j in [jlo, jhi] (already
-  /// inside the level) and keeps its best as a candidate.
-  void scan_coarse(std::size_t k, int ilo, int jlo, int ihi, int jhi, int& worst);
+  /// inside the level) and keeps its best place, and its second best away from it, in pool_.
+  void scan_coarse(std::size_t k, int ilo, int jlo, int ihi, int jhi);
+  /// Cell of the per-place caps of an anchor (x, y) given in pixels of 1/scale resolution.
+  int cell_of(int x, int y, int scale) const;
+  /// Takes up to `want` of `sorted` (best first) into `out`: first at most share * want per
+  /// cell, then the rest by score. Anchors in pixels of 1/scale resolution.
+  void select_diverse(const std::vector<Candidate>& sorted, std::size_t want, double share, int scale,
+                      std::vector<Candidate>& out);
   void fine_search();
   /// Best fine score (x1000 of the best possible) of a view around 1/2-resolution pixel (cx, cy)
   /// within detect.search.fine_window, and where; -1 when the template does not fit.
@@ -124,7 +141,12 @@ class Detector {
   std::unique_ptr<ColourRegions> colour_;  // null: no colour stage
   bool use_colour_ = false;                // this frame's search is restricted to colour_'s regions
   std::vector<std::uint8_t> acc_;         // coarse accumulator, lin_width x lin_height
-  std::vector<Candidate> coarse_;         // top coarse candidates (size <= coarse_candidates)
+  std::vector<Candidate> pool_;           // every coarse template's best places (<= 2 per region)
+  std::vector<Candidate> coarse_;         // coarse candidates (size <= coarse_candidates)
+  std::vector<Candidate> expand_;         // probed candidates whose neighbouring views are searched
+  std::vector<int> cell_count_;           // per-place caps: candidates taken per cell
+  std::vector<std::uint8_t> taken_;       // per-place caps: taken in the first pass
+  int cells_x_ = 1, cells_y_ = 1;
   std::vector<Candidate> fine_;           // fine candidates
   std::vector<Candidate> picked_;         // distinct fine candidates
   std::vector<Hypothesis> work_;          // refined hypotheses before sorting
