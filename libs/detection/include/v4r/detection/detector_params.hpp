@@ -38,8 +38,11 @@ struct SearchParams {
   /// orientation. The highest threshold: a frame's threshold is relative to its noise, see
   /// GradientThreshold (each level's noise: median of |gx| + |gy| at that level).
   double min_gradient = 8.0;
-  double min_gradient_floor = 3.0;  ///< grey/px: the lowest threshold (clean images; blur)
-  double noise_factor = 1.5;        ///< threshold = noise_factor x the level's noise, within floor .. min_gradient (0: min_gradient)
+  double min_gradient_floor = 3.0;  ///< grey/px: the lowest threshold (with noise_factor > 0)
+  /// threshold = noise_factor x the level's noise, within floor .. min_gradient; 0: min_gradient
+  /// (the default: measured, weak orientations of textured backgrounds cost the thin-plate
+  /// models more at the search than blurred edges gain; the verification's is relative).
+  double noise_factor = 0.0;
   int coarse_spread = 2;          ///< px at 1/4 resolution: orientations spread over (2r+1)^2
   int fine_spread = 2;            ///< px at 1/2 resolution
   double coarse_min_score = 0.5;  ///< share of the best possible coarse score a candidate needs
