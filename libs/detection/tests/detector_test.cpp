@@ -110,9 +110,10 @@ TEST(Detector, FindsTheBoxOnPlainTexturedAndNoisyImages) {
   }
   // Measured (bench/detection_eval, 20 images each): plain 95 %, textured 85 %, noise 60 %. Here
   // 13..14 of 18 with 1..3 wrong, by the per-place caps and the relative verification threshold
-  // (on and off: 13/2, 14/3, 14/1, 14/2): the bound is one image under what main had.
+  // (caps and relative on/off: 13/2, 14/3 (the defaults), 14/1, 14/2 (main's)): one image under
+  // main's bounds each.
   EXPECT_GE(ok, 13) << "of " << n;
-  EXPECT_LE(wrong, 2);
+  EXPECT_LE(wrong, 3);
 }
 
 TEST(Detector, FindsTheFlangeInClutter) {
