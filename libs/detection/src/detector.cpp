@@ -25,18 +25,10 @@ Detector::Detector(std::shared_ptr<const model::Model> model, std::shared_ptr<co
   const OrientationLevel& c = pyramid_.coarse();
   acc_.assign(static_cast<std::size_t>(c.lin_width) * c.lin_height, 0);
   coarse_.reserve(static_cast<std::size_t>(std::max(p_.search.coarse_candidates, p_.colour.coarse_candidates)) + 1);
-  // Every coarse template gives at most two places per searched region (or the whole image).
-  pool_.reserve(templates_->coarse.templates.size() * 2 * static_cast<std::size_t>(std::max(1, p_.colour.max_regions)) + 1);
-  const int cell = std::max(8, p_.search.place_cell);
-  cells_x_ = (cam.width + cell - 1) / cell + 1;
-  cells_y_ = (cam.height + cell - 1) / cell + 1;
-  cell_count_.assign(static_cast<std::size_t>(cells_x_) * cells_y_, 0);
   std::size_t max_children = 0;
   for (std::size_t k = 0; k + 1 < templates_->child_offsets.size(); ++k)
     max_children = std::max<std::size_t>(max_children, templates_->child_offsets[k + 1] - templates_->child_offsets[k]);
   fine_.reserve(static_cast<std::size_t>(std::max(p_.search.fine_expand, p_.colour.fine_expand)) * max_children + 1);
-  expand_.reserve(static_cast<std::size_t>(std::max(p_.search.fine_expand, p_.colour.fine_expand)) + 1);
-  taken_.assign(std::max(pool_.capacity(), fine_.capacity()), 0);
   picked_.reserve(static_cast<std::size_t>(p_.search.max_hypotheses));
   work_.reserve(static_cast<std::size_t>(p_.search.max_hypotheses));
 }
@@ -85,34 +77,11 @@ DetectionResult Detector::detect(const image::ImageView& grey, std::span<Hypothe
   return r;
 }
 
-int Detector::cell_of(int x, int y, int scale) const {
-  const int cell = std::max(8, p_.search.place_cell);
-  const int cx = std::clamp(x * scale / cell, 0, cells_x_ - 1), cy = std::clamp(y * scale / cell, 0, cells_y_ - 1);
-  return cy * cells_x_ + cx;
-}
-
-void Detector::select_diverse(const std::vector<Candidate>& sorted, std::size_t want, double share, int scale,
-                              std::vector<Candidate>& out) {
-  out.clear();
-  std::fill(cell_count_.begin(), cell_count_.end(), 0);
-  std::fill(taken_.begin(), taken_.begin() + static_cast<std::ptrdiff_t>(sorted.size()), 0);
-  const int cap = std::max(1, static_cast<int>(std::ceil(share * static_cast<double>(want))));
-  // First the best of every place up to its cap, then the rest by score.
-  for (std::size_t i = 0; i < sorted.size() && out.size() < want; ++i) {
-    int& n = cell_count_[static_cast<std::size_t>(cell_of(sorted[i].x, sorted[i].y, scale))];
-    if (n >= cap) continue;
-    ++n;
-    taken_[i] = 1;
-    out.push_back(sorted[i]);
-  }
-  for (std::size_t i = 0; i < sorted.size() && out.size() < want; ++i)
-    if (!taken_[i]) out.push_back(sorted[i]);
-}
-
 void Detector::coarse_search() {
   const TemplateSet& ts = *templates_;
   const OrientationLevel& L = pyramid_.coarse();
-  pool_.clear();
+  coarse_.clear();
+  int worst = 0;  // smallest score in coarse_ once it is full
   for (std::size_t k = 0; k < ts.coarse.templates.size(); ++k) {
     const Template& t = ts.coarse.templates[k];
     if (t.count < 4) continue;
@@ -121,7 +90,7 @@ void Detector::coarse_search() {
     const int i1 = (L.width - 1 - t.x1) / 2, j1 = (L.height - 1 - t.y1) / 2;
     if (i1 < i0 || j1 < j0 || 2 * i1 + t.x1 > L.width - 1 || 2 * j1 + t.y1 > L.height - 1) continue;
     if (!use_colour_) {
-      scan_coarse(k, i0, j0, i1, j1);
+      scan_coarse(k, i0, j0, i1, j1, worst);
       continue;
     }
     // Only where the template's coloured footprint holds a colour region of matching area.
@@ -131,18 +100,16 @@ void Detector::coarse_search() {
       const int ilo = std::max(i0, (ax0 + 1) / 2), ihi = std::min(i1, ax1 / 2);
       const int jlo = std::max(j0, (ay0 + 1) / 2), jhi = std::min(j1, ay1 / 2);
       if (ilo > ihi || jlo > jhi) continue;
-      scan_coarse(k, ilo, jlo, ihi, jhi);
+      scan_coarse(k, ilo, jlo, ihi, jhi, worst);
     }
   }
-  const std::size_t K = static_cast<std::size_t>(use_colour_ ? p_.colour.coarse_candidates : p_.search.coarse_candidates);
-  std::sort(pool_.begin(), pool_.end(), [](const Candidate& a, const Candidate& b) { return a.score > b.score; });
-  select_diverse(pool_, K, p_.search.coarse_place_share, 4, coarse_);
 }
 
-void Detector::scan_coarse(std::size_t k, int ilo, int jlo, int ihi, int jhi) {
+void Detector::scan_coarse(std::size_t k, int ilo, int jlo, int ihi, int jhi, int& worst) {
   const TemplateSet& ts = *templates_;
   const OrientationLevel& L = pyramid_.coarse();
   const int lw = L.lin_width;
+  const std::size_t K = static_cast<std::size_t>(use_colour_ ? p_.colour.coarse_candidates : p_.search.coarse_candidates);
   const Template& t = ts.coarse.templates[k];
   const int aw = ihi - ilo + 1, ah = jhi - jlo + 1;
   std::fill(acc_.begin(), acc_.begin() + static_cast<std::ptrdiff_t>(aw) * ah, 0);
@@ -157,38 +124,28 @@ void Detector::scan_coarse(std::size_t k, int ilo, int jlo, int ihi, int jhi) {
       for (int i = 0; i < aw; ++i) dst[i] = static_cast<std::uint8_t>(dst[i] + src[i]);
     }
   }
-  const int n = aw * ah;
-  const int min_score = static_cast<int>(std::ceil(p_.search.coarse_min_score * 4.0 * t.count));
-  const auto push = [&](int best, int bi) {
-    // Scores compared as shares of each template's best possible score (x1000).
-    const int share = static_cast<int>(1000.0 * best / (4.0 * t.count));
-    if (pool_.size() < pool_.capacity())
-      pool_.push_back(Candidate{share, static_cast<std::uint32_t>(k), static_cast<std::int16_t>(2 * (ilo + bi % aw)),
-                                static_cast<std::int16_t>(2 * (jlo + bi / aw))});
-  };
   int best = -1, bi = 0;
+  const int n = aw * ah;
   for (int i = 0; i < n; ++i)
     if (acc_[static_cast<std::size_t>(i)] > best) {
       best = acc_[static_cast<std::size_t>(i)];
       bi = i;
     }
+  const int min_score = static_cast<int>(std::ceil(p_.search.coarse_min_score * 4.0 * t.count));
   if (best < min_score) return;
-  push(best, bi);
-  // The second best place, away from the best (1 accumulator pixel = 8 full-resolution px).
-  const int r = p_.search.second_peak_distance / 8;
-  if (r <= 0) return;
-  const int bx = bi % aw, by = bi / aw;
-  int best2 = -1, bi2 = 0;
-  for (int j = 0; j < ah; ++j) {
-    const bool row_near = std::abs(j - by) < r;
-    const std::uint8_t* row = acc_.data() + static_cast<std::size_t>(j) * aw;
-    for (int i = 0; i < aw; ++i)
-      if (row[i] > best2 && !(row_near && std::abs(i - bx) < r)) {
-        best2 = row[i];
-        bi2 = j * aw + i;
-      }
+  // Scores compared as shares of each template's best possible score (x1000).
+  const int share = static_cast<int>(1000.0 * best / (4.0 * t.count));
+  if (coarse_.size() >= K && share <= worst) return;
+  Candidate c{share, static_cast<std::uint32_t>(k), static_cast<std::int16_t>(2 * (ilo + bi % aw)),
+              static_cast<std::int16_t>(2 * (jlo + bi / aw))};
+  if (coarse_.size() < K) {
+    coarse_.push_back(c);
+  } else {
+    auto it = std::min_element(coarse_.begin(), coarse_.end(), [](const Candidate& a, const Candidate& b) { return a.score < b.score; });
+    *it = c;
   }
-  if (best2 >= min_score) push(best2, bi2);
+  if (coarse_.size() >= K)
+    worst = std::min_element(coarse_.begin(), coarse_.end(), [](const Candidate& a, const Candidate& b) { return a.score < b.score; })->score;
 }
 
 PixelBox Detector::colour_roi() const {
@@ -250,14 +207,11 @@ void Detector::fine_search() {
     c.score = s;
   }
   std::sort(coarse_.begin(), coarse_.end(), [](const Candidate& a, const Candidate& b) { return a.score > b.score; });
-  std::size_t probed = 0;  // candidates whose own view fits the level
-  while (probed < coarse_.size() && coarse_[probed].score >= 0) ++probed;
-  const std::size_t expand = static_cast<std::size_t>(use_colour_ ? p_.colour.fine_expand : p_.search.fine_expand);
-  fine_.clear();  // (scratch: the probed candidates, for the selection)
-  fine_.insert(fine_.end(), coarse_.begin(), coarse_.begin() + static_cast<std::ptrdiff_t>(std::min(probed, fine_.capacity())));
-  select_diverse(fine_, expand, p_.search.expand_place_share, 4, expand_);
-  fine_.clear();
-  for (const Candidate& c : expand_) {
+  const std::size_t expand =
+      std::min(coarse_.size(), static_cast<std::size_t>(use_colour_ ? p_.colour.fine_expand : p_.search.fine_expand));
+  for (std::size_t k = 0; k < expand; ++k) {
+    const Candidate& c = coarse_[k];
+    if (c.score < 0) break;
     const int cx = 2 * c.x, cy = 2 * c.y;  // 1/4 -> 1/2 resolution
     for (std::uint32_t ci = ts.child_offsets[c.index]; ci < ts.child_offsets[c.index + 1]; ++ci) {
       const std::uint32_t view = ts.children[ci];
@@ -272,29 +226,20 @@ void Detector::fine_search() {
   picked_.clear();
   const std::size_t want = static_cast<std::size_t>(
       use_colour_ ? std::min(p_.colour.max_hypotheses, p_.search.max_hypotheses) : p_.search.max_hypotheses);
-  const auto duplicate = [&](const Candidate& c) {
+  for (const Candidate& c : fine_) {
+    if (picked_.size() >= want) break;
+    bool dup = false;
     for (const Candidate& q : picked_) {
       if (std::abs(q.x - c.x) > 3 || std::abs(q.y - c.y) > 3) continue;
       const TemplateView& a = ts.views[q.index];
       const TemplateView& b = ts.views[c.index];
-      if (std::abs(a.distance - b.distance) <= 1 && geometry::rotation_angle_between(a.T_cam_obj, b.T_cam_obj) < 0.3)
-        return true;
+      if (std::abs(a.distance - b.distance) <= 1 && geometry::rotation_angle_between(a.T_cam_obj, b.T_cam_obj) < 0.3) {
+        dup = true;
+        break;
+      }
     }
-    return false;
-  };
-  // Per place at most hypothesis_place_share of the hypotheses first, then the rest by score.
-  std::fill(cell_count_.begin(), cell_count_.end(), 0);
-  std::fill(taken_.begin(), taken_.begin() + static_cast<std::ptrdiff_t>(fine_.size()), 0);
-  const int cap = std::max(1, static_cast<int>(std::ceil(p_.search.hypothesis_place_share * static_cast<double>(want))));
-  for (std::size_t i = 0; i < fine_.size() && picked_.size() < want; ++i) {
-    int& cnt = cell_count_[static_cast<std::size_t>(cell_of(fine_[i].x, fine_[i].y, 2))];
-    if (cnt >= cap || duplicate(fine_[i])) continue;
-    ++cnt;
-    taken_[i] = 1;
-    picked_.push_back(fine_[i]);
+    if (!dup) picked_.push_back(c);
   }
-  for (std::size_t i = 0; i < fine_.size() && picked_.size() < want; ++i)
-    if (!taken_[i] && !duplicate(fine_[i])) picked_.push_back(fine_[i]);
 }
 
 Detector::CandidateInfo Detector::candidate(bool picked, std::size_t i) const {

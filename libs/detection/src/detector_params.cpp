@@ -45,16 +45,6 @@ void add_params(ParamRegistry& r, DetectorParams& p) {
   r.add("detect.search.fine_expand", &s.fine_expand, 1, 1024, "", "best probed candidates whose neighbouring views are searched at 1/2 resolution");
   r.add("detect.search.fine_window", &s.fine_window, 0, 8, "px", "half window at 1/2 resolution around a coarse candidate");
   r.add("detect.search.max_hypotheses", &s.max_hypotheses, 1, 64, "", "hypotheses refined and verified per frame");
-  r.add("detect.search.place_cell", &s.place_cell, 8, 640, "px",
-        "cell size (full resolution) of the per-place caps on candidates (model centre's projection)");
-  r.add("detect.search.coarse_place_share", &s.coarse_place_share, 0.0, 1.0, "",
-        "share of the coarse candidates one cell may take before the rest are filled by score");
-  r.add("detect.search.expand_place_share", &s.expand_place_share, 0.0, 1.0, "",
-        "share of the expanded candidates one cell may take before the rest are filled by score");
-  r.add("detect.search.hypothesis_place_share", &s.hypothesis_place_share, 0.0, 1.0, "",
-        "share of the hypotheses one cell may take before the rest are filled by score");
-  r.add("detect.search.second_peak_distance", &s.second_peak_distance, 0, 640, "px",
-        "a coarse template also keeps its second best place this far from its best (0: best only)");
   auto& f = p.verify;
   r.add("detect.verify.sample_spacing", &f.sample_spacing_px, 1.0, 50.0, "px", "spacing of the projected model's edge samples");
   r.add("detect.verify.max_samples", &f.max_samples, 16, 4096, "", "edge samples per pose at most");

@@ -25,7 +25,7 @@ struct Hypothesis {
   geometry::SE3 T_template;     ///< the template's pose before refinement
   double template_score = 0.0;  ///< fine template match, share of the best possible (0..1)
   Verification verification;    ///< edge test of the refined pose
-  bool verified = false;        ///< verification.score >= detect.verify.accept_score
+  bool verified = false;        ///< verification.score >= detect.verify.accept_score (with enough samples)
   std::uint32_t view = 0;       ///< template view it came from
 };
 
@@ -119,14 +119,8 @@ class Detector {
   PixelBox colour_roi() const;
   void coarse_search();
   /// Scores coarse template k at the anchors (2i, 2j), i in [ilo, ihi], j in [jlo, jhi] (already
-  /// inside the level) and keeps its best place, and its second best away from it, in pool_.
-  void scan_coarse(std::size_t k, int ilo, int jlo, int ihi, int jhi);
-  /// Cell of the per-place caps of an anchor (x, y) given in pixels of 1/scale resolution.
-  int cell_of(int x, int y, int scale) const;
-  /// Takes up to `want` of `sorted` (best first) into `out`: first at most share * want per
-  /// cell, then the rest by score. Anchors in pixels of 1/scale resolution.
-  void select_diverse(const std::vector<Candidate>& sorted, std::size_t want, double share, int scale,
-                      std::vector<Candidate>& out);
+  /// inside the level) and keeps its best as a candidate.
+  void scan_coarse(std::size_t k, int ilo, int jlo, int ihi, int jhi, int& worst);
   void fine_search();
   /// Best fine score (x1000 of the best possible) of a view around 1/2-resolution pixel (cx, cy)
   /// within detect.search.fine_window, and where; -1 when the template does not fit.
@@ -141,12 +135,7 @@ class Detector {
   std::unique_ptr<ColourRegions> colour_;  // null: no colour stage
   bool use_colour_ = false;                // this frame's search is restricted to colour_'s regions
   std::vector<std::uint8_t> acc_;         // coarse accumulator, lin_width x lin_height
-  std::vector<Candidate> pool_;           // every coarse template's best places (<= 2 per region)
-  std::vector<Candidate> coarse_;         // coarse candidates (size <= coarse_candidates)
-  std::vector<Candidate> expand_;         // probed candidates whose neighbouring views are searched
-  std::vector<int> cell_count_;           // per-place caps: candidates taken per cell
-  std::vector<std::uint8_t> taken_;       // per-place caps: taken in the first pass
-  int cells_x_ = 1, cells_y_ = 1;
+  std::vector<Candidate> coarse_;         // top coarse candidates (size <= coarse_candidates)
   std::vector<Candidate> fine_;           // fine candidates
   std::vector<Candidate> picked_;         // distinct fine candidates
   std::vector<Hypothesis> work_;          // refined hypotheses before sorting

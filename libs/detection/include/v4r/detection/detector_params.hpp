@@ -50,21 +50,6 @@ struct SearchParams {
   int fine_expand = 64;           ///< best probed candidates whose neighbouring views are searched
   int fine_window = 2;            ///< px at 1/2 resolution searched around a coarse candidate
   int max_hypotheses = 16;        ///< hypotheses refined and verified per frame
-  /// Diversity of the candidates (so that clutter cannot fill every slot at one wrong place): the
-  /// image is cut into cells of place_cell px (full resolution) by the anchors (the model
-  /// centre's projection); the coarse candidates, the expanded ones and the hypotheses take at
-  /// most these shares of their slots per cell first (the slots left are then filled by score).
-  /// Off by default (shares 1, no second peak): measured with shares 0.1 / 0.2 / 0.25 and a
-  /// second peak at 32 px, the evaluator's success did not change (box clutter 12 of 20 either
-  /// way) and the development benchmark's box_clutter, searched without an initial pose, locked
-  /// onto a wrong pose at frame 57 (75 and right without them).
-  int place_cell = 64;                  ///< px (full resolution)
-  double coarse_place_share = 1.0;      ///< of detect.search.coarse_candidates per cell
-  double expand_place_share = 1.0;      ///< of detect.search.fine_expand per cell
-  double hypothesis_place_share = 1.0;  ///< of detect.search.max_hypotheses per cell
-  /// A coarse template also keeps its second best place when it lies this far (px, full
-  /// resolution) from its best and scores at least coarse_min_score (0: the best place only).
-  int second_peak_distance = 0;
 };
 
 /// \brief Local refinement and verification of a hypothesis against the image's edges.
