@@ -108,11 +108,10 @@ TEST(Detector, FindsTheBoxOnPlainTexturedAndNoisyImages) {
     wrong += w;
     n += 6;
   }
-  // Measured (bench/detection_eval, 20 images each): plain 95 %, textured 85 %, noise 60 %. Here
-  // 13..14 of 18 with 1..3 wrong, by the per-place caps and the relative verification threshold
-  // (caps and relative on/off: 13/2, 14/3 (the defaults), 14/1, 14/2 (main's)): one image under
-  // main's bounds each.
-  EXPECT_GE(ok, 13) << "of " << n;
+  // Measured (bench/detection_eval, 40 images each): plain 92 %, textured 80 %, noise 70 %. Here 14
+  // of 18, 3 wrong (main, with its fixed verification threshold: 14, 2 wrong; the threshold that
+  // follows the frame's noise lets one more wrong pose through and finds blurred objects).
+  EXPECT_GE(ok, 14) << "of " << n;
   EXPECT_LE(wrong, 3);
 }
 
