@@ -265,6 +265,21 @@ int main(int argc, char** argv) {
             const double fs = score_at(tsx.fine, det.gradients().fine(), tsx.fine.templates[best_v], a.x() * 0.5 - 0.25, a.y() * 0.5 - 0.25);
             const double cs = score_at(tsx.coarse, det.gradients().coarse(), tsx.coarse.templates[cbv], a.x() * 0.25 - 0.375, a.y() * 0.25 - 0.375);
             fmt::print(stderr, "   oracle: nearest fine view dist {:.1f} score {:.2f}; nearest coarse dist {:.1f} score {:.2f}\n", best_d, fs, cbest, cs);
+            // Where the truth was lost: the first coarse candidate (ranked by its probe) and picked
+            // hypothesis near the true anchor (12 px), and near it with a view within 20 degrees.
+            for (const bool picked : {false, true}) {
+              int near_pos = -1, near_both = -1;
+              for (std::size_t i = 0; i < det.candidate_count(picked); ++i) {
+                const auto c = det.candidate(picked, i);
+                const double d = std::hypot(2.0 * c.x + 0.5 - a.x(), 2.0 * c.y + 0.5 - a.y());
+                if (d > 12.0) continue;
+                if (near_pos < 0) near_pos = static_cast<int>(i);
+                if (near_both < 0 && geometry::rotation_angle_between(tsx.views[c.view].T_cam_obj, Tv) < 20.0 / 57.3)
+                  near_both = static_cast<int>(i);
+              }
+              fmt::print(stderr, "   {} ({}): first near the truth #{}, near with its view #{}\n", picked ? "picked" : "coarse",
+                         det.candidate_count(picked), near_pos, near_both);
+            }
           }
           for (const double dz : {0.92, 1.08}) {
             geometry::SE3 Tp = T;

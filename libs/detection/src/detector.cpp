@@ -33,8 +33,12 @@ Detector::Detector(std::shared_ptr<const model::Model> model, std::shared_ptr<co
   work_.reserve(static_cast<std::size_t>(p_.search.max_hypotheses));
 }
 
-bool Detector::set_image(const image::ColourView& bgr) { return pyramid_.compute(bgr, p_.search.min_gradient); }
-bool Detector::set_image(const image::ImageView& grey) { return pyramid_.compute(grey, p_.search.min_gradient); }
+namespace {
+GradientThreshold search_threshold(const SearchParams& s) { return {s.min_gradient, s.min_gradient_floor, s.noise_factor}; }
+}  // namespace
+
+bool Detector::set_image(const image::ColourView& bgr) { return pyramid_.compute(bgr, search_threshold(p_.search)); }
+bool Detector::set_image(const image::ImageView& grey) { return pyramid_.compute(grey, search_threshold(p_.search)); }
 Verification Detector::verify(const geometry::SE3& T) { return aligner_.verify(pyramid_, T); }
 int Detector::refine(geometry::SE3& T) { return aligner_.refine(pyramid_, T); }
 
@@ -53,7 +57,7 @@ DetectionResult Detector::detect(const image::ColourView& bgr, std::span<Hypothe
     return r;
   }
   use_colour_ = regions > 0;
-  if (!(use_colour_ ? pyramid_.compute(bgr, p_.search.min_gradient, colour_roi()) : set_image(bgr)))
+  if (!(use_colour_ ? pyramid_.compute(bgr, search_threshold(p_.search), colour_roi()) : set_image(bgr)))
     return DetectionResult{DetectionResult::Status::kBadImage};
   DetectionResult r = run(out);
   use_colour_ = false;
@@ -236,6 +240,15 @@ void Detector::fine_search() {
     }
     if (!dup) picked_.push_back(c);
   }
+}
+
+Detector::CandidateInfo Detector::candidate(bool picked, std::size_t i) const {
+  if (picked) {
+    const Candidate& c = picked_[i];
+    return CandidateInfo{c.index, c.score, c.x, c.y};
+  }
+  const Candidate& c = coarse_[i];  // coarse anchors are 1/4-resolution pixels
+  return CandidateInfo{templates_->coarse_views[c.index], c.score, 2 * c.x, 2 * c.y};
 }
 
 DetectionResult Detector::run(std::span<Hypothesis> out) {

@@ -32,7 +32,12 @@ void add_params(ParamRegistry& r, DetectorParams& p) {
   r.add("detect.templates.fine_features", &t.fine_features, 8, 63, "", "orientation features per fine template (1/2 resolution)");
   r.add("detect.templates.crease_angle", &t.crease_angle_deg, 0.0, 90.0, "deg", "edges between faces closer than this in normal are not in templates");
   auto& s = p.search;
-  r.add("detect.search.min_gradient", &s.min_gradient, 0.0, 255.0, "grey/px", "weaker gradients carry no orientation");
+  r.add("detect.search.min_gradient", &s.min_gradient, 0.0, 255.0, "grey/px",
+        "highest orientation threshold: weaker gradients carry no orientation (noisy frames)");
+  r.add("detect.search.min_gradient_floor", &s.min_gradient_floor, 0.0, 255.0, "grey/px",
+        "lowest orientation threshold (clean frames, blurred edges)");
+  r.add("detect.search.noise_factor", &s.noise_factor, 0.0, 20.0, "",
+        "orientation threshold = this x the level's median |gx|+|gy|, within min_gradient_floor .. min_gradient (0: min_gradient)");
   r.add("detect.search.coarse_spread", &s.coarse_spread, 0, 8, "px", "orientation spreading radius at 1/4 resolution");
   r.add("detect.search.fine_spread", &s.fine_spread, 0, 8, "px", "orientation spreading radius at 1/2 resolution");
   r.add("detect.search.coarse_min_score", &s.coarse_min_score, 0.0, 1.0, "", "share of the best coarse score a candidate needs");
@@ -49,7 +54,12 @@ void add_params(ParamRegistry& r, DetectorParams& p) {
   r.add("detect.verify.refine_iterations", &f.refine_iterations, 0, 100, "", "iterations of the 6-DoF edge alignment of a hypothesis");
   r.add("detect.verify.match_distance", &f.match_distance_px, 0.5, 10.0, "px", "a sample matches a gradient this close along its normal");
   r.add("detect.verify.match_angle", &f.match_angle_deg, 1.0, 90.0, "deg", "largest angle between a matching gradient and the edge normal");
-  r.add("detect.verify.min_gradient", &f.min_gradient, 0.0, 255.0, "grey/px", "weakest gradient that matches a sample");
+  r.add("detect.verify.min_gradient", &f.min_gradient, 0.0, 255.0, "grey/px",
+        "highest threshold of a gradient that matches a sample (noisy frames)");
+  r.add("detect.verify.min_gradient_floor", &f.min_gradient_floor, 0.0, 255.0, "grey/px",
+        "lowest threshold of a matching gradient (clean frames, blurred edges)");
+  r.add("detect.verify.noise_factor", &f.noise_factor, 0.0, 20.0, "",
+        "matching threshold = this x the frame's median |gx|+|gy|, within min_gradient_floor .. min_gradient (0: min_gradient)");
   r.add("detect.verify.min_samples", &f.min_samples, 3, 4096, "", "fewer visible edge samples: the pose is not verified");
   r.add("detect.verify.peak_tolerance", &f.peak_tolerance, 1.0, 10.0, "",
         "a matching gradient is an edge: its neighbours 1 px along the normal have at most this times its gradient");

@@ -15,6 +15,7 @@ constexpr double kDeg = 3.14159265358979323846 / 180.0;
 EdgeAligner::EdgeAligner(const model::Model& model, const geometry::PinholeCamera& cam, const DetectorParams& p)
     : cam_(cam),
       p_(p.verify),
+      threshold_{p.verify.min_gradient, p.verify.min_gradient_floor, p.verify.noise_factor},
       min_sobel2_(64.0 * p.verify.min_gradient * p.verify.min_gradient),
       cos_match_(std::cos(p.verify.match_angle_deg * kDeg)),
       cos_search_(std::cos(std::min(80.0, 1.5 * p.verify.match_angle_deg) * kDeg)),
@@ -45,6 +46,11 @@ double EdgeAligner::search(const GradientPyramid& g, const Eigen::Vector2d& px, 
   return best_t;
 }
 
+void EdgeAligner::set_threshold(const GradientPyramid& g) {
+  const double t = threshold_.at(g.noise());
+  min_sobel2_ = 64.0 * t * t;  // Sobel is 8x the gradient
+}
+
 double EdgeAligner::loose_share(const GradientPyramid& g, const geometry::SE3& T, double range) {
   const std::size_t n = projector_.sample(T, cam_, p_.sample_spacing_px, samples_);
   if (n < 12) return 0.0;
@@ -55,6 +61,7 @@ double EdgeAligner::loose_share(const GradientPyramid& g, const geometry::SE3& T
 }
 
 int EdgeAligner::refine(const GradientPyramid& g, geometry::SE3& T) {
+  set_threshold(g);
   int moved = 0;
   if (p_.depth_scan_steps > 0) {
     // Scale is what a template grid samples most coarsely: scan the distance first.
@@ -114,6 +121,7 @@ int EdgeAligner::refine(const GradientPyramid& g, geometry::SE3& T) {
 }
 
 Verification EdgeAligner::verify(const GradientPyramid& g, const geometry::SE3& T) {
+  set_threshold(g);
   Verification v;
   const std::size_t n = projector_.sample(T, cam_, p_.sample_spacing_px, samples_);
   v.samples = static_cast<int>(n);

@@ -9,6 +9,7 @@ namespace v4r::detection {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
+constexpr int kHistBins = 4096;  // Sobel |gx| + |gy| of 8-bit images stays below 4 * 255 * 2
 
 /// Sobel gradient of an interleaved image (w x h, `ch` channels), the channel of largest
 /// magnitude per pixel, at the pixels of `b` (clipped to the image's interior); output rows are
@@ -134,25 +135,43 @@ GradientPyramid::GradientPyramid(int width, int height, int fine_spread, int coa
   lgy_.assign(n / 4 + 1, 0);
   allocate(fine_, width_ / 2, height_ / 2, fine_spread, false);
   allocate(coarse_, width_ / 4, height_ / 4, coarse_spread, true);
+  hist_.assign(kHistBins, 0);
 }
 
-bool GradientPyramid::compute(const image::ImageView& grey, double min_gradient) {
+int GradientPyramid::median_l1(const std::int16_t* gx, const std::int16_t* gy, int w, PixelBox b) {
+  std::fill(hist_.begin(), hist_.end(), 0);
+  long n = 0;
+  for (int y = b.y0; y < b.y1; ++y) {
+    const std::int16_t* ox = gx + static_cast<std::size_t>(y) * w;
+    const std::int16_t* oy = gy + static_cast<std::size_t>(y) * w;
+    for (int x = b.x0; x < b.x1; ++x) ++hist_[static_cast<std::size_t>(std::min(kHistBins - 1, std::abs(ox[x]) + std::abs(oy[x])))];
+    n += std::max(0, b.x1 - b.x0);
+  }
+  long acc = 0;
+  for (int i = 0; i < kHistBins; ++i) {
+    acc += hist_[static_cast<std::size_t>(i)];
+    if (2 * acc >= n) return i;
+  }
+  return kHistBins - 1;
+}
+
+bool GradientPyramid::compute(const image::ImageView& grey, const GradientThreshold& t) {
   if (grey.empty() || grey.width != width_ || grey.height != height_) return false;
-  return compute_from(grey.data, grey.stride, 1, min_gradient, PixelBox{0, 0, width_, height_});
+  return compute_from(grey.data, grey.stride, 1, t, PixelBox{0, 0, width_, height_});
 }
 
-bool GradientPyramid::compute(const image::ColourView& bgr, double min_gradient) {
+bool GradientPyramid::compute(const image::ColourView& bgr, const GradientThreshold& t) {
   if (bgr.empty() || bgr.width != width_ || bgr.height != height_) return false;
-  return compute_from(bgr.data, bgr.stride, 3, min_gradient, PixelBox{0, 0, width_, height_});
+  return compute_from(bgr.data, bgr.stride, 3, t, PixelBox{0, 0, width_, height_});
 }
 
-bool GradientPyramid::compute(const image::ColourView& bgr, double min_gradient, PixelBox roi) {
+bool GradientPyramid::compute(const image::ColourView& bgr, const GradientThreshold& t, PixelBox roi) {
   if (bgr.empty() || bgr.width != width_ || bgr.height != height_) return false;
   // Multiples of 4, so that the levels' pixels inside are whole.
   roi = PixelBox{std::max(0, roi.x0 & ~3), std::max(0, roi.y0 & ~3), std::min(width_, (roi.x1 + 3) & ~3),
                  std::min(height_, (roi.y1 + 3) & ~3)};
   if (roi.empty()) roi = PixelBox{0, 0, 4, 4};
-  return compute_from(bgr.data, bgr.stride, 3, min_gradient, roi);
+  return compute_from(bgr.data, bgr.stride, 3, t, roi);
 }
 
 void GradientPyramid::clear() {
@@ -167,26 +186,29 @@ void GradientPyramid::clear() {
   }
 }
 
-bool GradientPyramid::compute_from(const std::uint8_t* data, int stride, int ch, double min_gradient, PixelBox roi) {
+bool GradientPyramid::compute_from(const std::uint8_t* data, int stride, int ch, const GradientThreshold& t, PixelBox roi) {
   const bool whole = roi.x0 == 0 && roi.y0 == 0 && roi.x1 == width_ && roi.y1 == height_;
   if (!whole) clear();
   sobel_max(data, stride, ch, width_, height_, roi, gx_.data(), gy_.data());
+  noise_ = median_l1(gx_.data(), gy_.data(), width_, roi) / 8.0;  // Sobel is 8x the gradient
   // Each level's box (level pixels) inside the roi; the level images wider for the level's Sobel
   // (1 pixel) and the next halving (2 fine pixels per coarse one).
   const PixelBox fb = scaled(roi, 2, 0, fine_.width, fine_.height), cb = scaled(roi, 4, 0, coarse_.width, coarse_.height);
   halve(data, stride, ch, fine_.width, scaled(roi, 2, 2, fine_.width, fine_.height), fine_.image.data());
   halve(fine_.image.data(), fine_.width * ch, ch, coarse_.width, scaled(roi, 4, 1, coarse_.width, coarse_.height),
         coarse_.image.data());
-  orientations(fine_, ch, min_gradient, false, fb);
-  orientations(coarse_, ch, min_gradient, true, cb);
+  orientations(fine_, ch, t, false, fb);
+  orientations(coarse_, ch, t, true, cb);
   return true;
 }
 
-void GradientPyramid::orientations(OrientationLevel& l, int ch, double min_gradient, bool linear, PixelBox b) {
+void GradientPyramid::orientations(OrientationLevel& l, int ch, const GradientThreshold& thr, bool linear, PixelBox b) {
   const int w = l.width, h = l.height;
   sobel_max(l.image.data(), w * ch, ch, w, h, b, lgx_.data(), lgy_.data());
   // Sobel is 8x the gradient per pixel.
-  const double t = 8.0 * min_gradient;
+  l.noise = median_l1(lgx_.data(), lgy_.data(), w, b) / 8.0;
+  l.threshold = thr.at(l.noise);
+  const double t = 8.0 * l.threshold;
   const std::int64_t t2 = static_cast<std::int64_t>(t * t);
   // Orientation boundaries: bin k covers angles [k, k+1) * pi / 8 in the upper half plane.
   for (int y = b.y0; y < b.y1; ++y)

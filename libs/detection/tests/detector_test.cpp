@@ -137,9 +137,11 @@ TEST(Detector, FindsTheBoxOnPlainTexturedAndNoisyImages) {
     wrong += w;
     n += 6;
   }
-  // Measured (bench/detection_eval, 20 images each): plain 100 %, textured 90 %, noise 75 %.
+  // Measured (bench/detection_eval, 40 images each): plain 92 %, textured 80 %, noise 70 %. Here 14
+  // of 18, 3 wrong (main, with its fixed verification threshold: 14, 2 wrong; the threshold that
+  // follows the frame's noise lets one more wrong pose through and finds blurred objects).
   EXPECT_GE(ok, 14) << "of " << n;
-  EXPECT_LE(wrong, 2);
+  EXPECT_LE(wrong, 3);
 }
 
 TEST(Detector, FindsTheFlangeInClutter) {
@@ -193,4 +195,44 @@ TEST(Detector, AllocatesNothingPerFrameAndRejectsAWrongImageSize) {
   const cv::Mat small(100, 100, CV_8UC3, cv::Scalar::all(0));
   EXPECT_EQ(det.detect(io::as_colour_view(small), hyp).status, DetectionResult::Status::kBadImage);
   EXPECT_EQ(det.detect(image::ColourView{}, hyp).status, DetectionResult::Status::kBadImage);
+}
+
+TEST(Detector, VerifiesTheTruthOnMotionBlurredImages) {
+  // Motion blur (bench/detection_eval's blur scene: ~10 px of motion over the exposure) spreads an
+  // edge's step over several pixels; under a fixed threshold of 8 grey/px most of the box's edges
+  // matched nothing and the truth, refined on its own image, scored 0.44..0.80 (2 of 12 above
+  // accept_score 0.75). The verification's threshold follows the frame's noise instead.
+  const Fixture f = make(synth::box_cao);
+  Detector det(f.model, f.templates, f.cam, f.params);
+  std::mt19937 rng(1000u + 4u * 77u);
+  int verified = 0;
+  const int n = 8;
+  for (int k = 0; k < n; ++k) {
+    const geometry::SE3 T = scenes::random_pose(*f.model, f.params.views, f.cam, rng);
+    const cv::Mat img = scenes::render_scene(*f.model, T, f.cam, scenes::Scene::kBlur, 100u + static_cast<unsigned>(k));
+    ASSERT_TRUE(det.set_image(io::as_colour_view(img)));
+    geometry::SE3 Tr = T;
+    det.refine(Tr);
+    const Verification v = det.verify(Tr);
+    const PoseError e = symmetric_pose_error(Tr, T, f.symmetries);
+    if (v.score >= f.params.verify.accept_score && e.translation <= 0.05 && e.rotation <= 5 * kDeg) ++verified;
+  }
+  EXPECT_GE(verified, 7) << "of " << n;
+}
+
+TEST(Detector, NoisyFramesKeepTheFullGradientThreshold) {
+  // The relative threshold: the floor on a clean frame, the ceiling (min_gradient) on a noisy one.
+  const Fixture f = make(synth::box_cao);
+  Detector det(f.model, f.templates, f.cam, f.params);
+  cv::Mat clean(f.cam.height, f.cam.width, CV_8UC3, cv::Scalar::all(120));
+  ASSERT_TRUE(det.set_image(io::as_colour_view(clean)));
+  EXPECT_NEAR(det.gradients().noise(), 0.0, 1e-9);
+  cv::Mat noise(clean.size(), CV_16SC3), noisy;
+  cv::randn(noise, cv::Scalar::all(0), cv::Scalar::all(8));
+  cv::add(clean, noise, noisy, cv::noArray(), CV_8UC3);
+  ASSERT_TRUE(det.set_image(io::as_colour_view(noisy)));
+  const GradientThreshold t{f.params.verify.min_gradient, f.params.verify.min_gradient_floor, f.params.verify.noise_factor};
+  EXPECT_GT(det.gradients().noise(), 4.0);  // sigma 8: Sobel |gx|+|gy| per pixel ~ 8 * 0.43 * 2 * 0.8
+  EXPECT_DOUBLE_EQ(t.at(det.gradients().noise()), f.params.verify.min_gradient);
+  EXPECT_DOUBLE_EQ(t.at(0.0), f.params.verify.min_gradient_floor);
 }

@@ -25,7 +25,7 @@ struct Hypothesis {
   geometry::SE3 T_template;     ///< the template's pose before refinement
   double template_score = 0.0;  ///< fine template match, share of the best possible (0..1)
   Verification verification;    ///< edge test of the refined pose
-  bool verified = false;        ///< verification.score >= detect.verify.accept_score
+  bool verified = false;        ///< verification.score >= detect.verify.accept_score (with enough samples)
   std::uint32_t view = 0;       ///< template view it came from
 };
 
@@ -93,6 +93,17 @@ class Detector {
   /// The gradients of the last image (for display and diagnosis).
   [[nodiscard]] const GradientPyramid& gradients() const { return pyramid_; }
   [[nodiscard]] const TemplateSet& templates() const { return *templates_; }
+  /// \brief A search candidate of the last detect() (for diagnosis): template view, score (x1000
+  /// of the best possible at its level) and anchor (1/2-resolution pixels).
+  struct CandidateInfo {
+    std::uint32_t view = 0;
+    int score = 0;
+    int x = 0, y = 0;
+  };
+  /// The last detect()'s coarse candidates (ranked by their probe at 1/2 resolution) or its
+  /// picked hypotheses before refinement (`picked`), for diagnosis.
+  [[nodiscard]] std::size_t candidate_count(bool picked) const { return picked ? picked_.size() : coarse_.size(); }
+  [[nodiscard]] CandidateInfo candidate(bool picked, std::size_t i) const;
   /// The colour stage, or nullptr when the model has no face colour or it is disabled.
   [[nodiscard]] const ColourRegions* colour_regions() const { return colour_.get(); }
 

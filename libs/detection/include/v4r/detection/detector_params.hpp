@@ -34,7 +34,15 @@ struct TemplateParams {
 
 /// \brief The online search: gradients, spreading, coarse-to-fine template matching.
 struct SearchParams {
-  double min_gradient = 8.0;      ///< grey levels per pixel (a step of 2x this across an edge): weaker gradients carry no orientation
+  /// Grey levels per pixel (a step of 2x this across an edge): weaker gradients carry no
+  /// orientation. The highest threshold: a frame's threshold is relative to its noise, see
+  /// GradientThreshold (each level's noise: median of |gx| + |gy| at that level).
+  double min_gradient = 8.0;
+  double min_gradient_floor = 3.0;  ///< grey/px: the lowest threshold (with noise_factor > 0)
+  /// threshold = noise_factor x the level's noise, within floor .. min_gradient; 0: min_gradient
+  /// (the default: measured, weak orientations of textured backgrounds cost the thin-plate
+  /// models more at the search than blurred edges gain; the verification's is relative).
+  double noise_factor = 0.0;
   int coarse_spread = 2;          ///< px at 1/4 resolution: orientations spread over (2r+1)^2
   int fine_spread = 2;            ///< px at 1/2 resolution
   double coarse_min_score = 0.5;  ///< share of the best possible coarse score a candidate needs
@@ -54,7 +62,11 @@ struct VerifyParams {
   int refine_iterations = 12;       ///< Gauss-Newton iterations of the 6-DoF edge alignment
   double match_distance_px = 1.5;   ///< px: a sample matches a gradient this close along its normal
   double match_angle_deg = 15.0;    ///< degrees: ... whose orientation is this close to the edge normal
-  double min_gradient = 8.0;        ///< grey levels per pixel of a matching gradient (a step of 2x this)
+  /// Grey levels per pixel of a matching gradient (a step of 2x this): the highest threshold, as
+  /// detect.search.min_gradient, relative to the full-resolution noise of the frame.
+  double min_gradient = 8.0;
+  double min_gradient_floor = 3.0;  ///< grey/px: the lowest threshold (clean images; blur)
+  double noise_factor = 1.5;        ///< threshold = noise_factor x the frame's noise, within floor .. min_gradient (0: min_gradient)
   int min_samples = 30;             ///< fewer visible samples: a pose cannot be verified
   double peak_tolerance = 1.0;      ///< a match's neighbours along the normal may have at most this times its gradient
   bool short_pieces = true;         ///< an edge piece shorter than min_run counts when all of it matches

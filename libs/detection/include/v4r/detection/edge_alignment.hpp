@@ -49,7 +49,11 @@ class EdgeAligner {
 
   geometry::PinholeCamera cam_;
   VerifyParams p_;
-  double min_sobel2_;  // squared threshold in Sobel units
+  /// The frame's matching threshold (detect.verify.min_gradient*, relative to g.noise()).
+  void set_threshold(const GradientPyramid& g);
+
+  GradientThreshold threshold_;
+  double min_sobel2_;  // squared threshold in Sobel units, of the last frame
   double cos_match_, cos_search_;
   EdgeProjector projector_;
   std::vector<EdgeSample> samples_;

@@ -1,6 +1,7 @@
 // v4r - robust model-based object tracking. MIT licence.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <vector>
@@ -35,6 +36,21 @@ struct OrientationLevel {
   /// Only at the coarse level: linear[o][py * 2 + px] has lin_width x lin_height pixels, entry (i, j) = response (2i+px, 2j+py).
   std::array<std::array<std::vector<std::uint8_t>, 4>, kOrientations> linear;
   int lin_width = 0, lin_height = 0;
+  double noise = 0.0;      ///< grey levels per level pixel: median of |gx| + |gy| over the computed box
+  double threshold = 0.0;  ///< grey levels per level pixel: weakest gradient given an orientation
+};
+
+/// \brief The gradient threshold of a frame, relative to its noise (and texture): a gradient
+/// carries an edge when it exceeds max(floor, min(ceiling, factor * noise)), `noise` being the
+/// median of |gx| + |gy| (grey levels per pixel) over the image. Clean images (blur lowers their
+/// edges' gradients) get the floor, noisy ones up to the ceiling. factor 0: the ceiling always.
+struct GradientThreshold {
+  double ceiling = 8.0;  ///< grey/px
+  double floor = 3.0;    ///< grey/px
+  double factor = 1.5;
+  [[nodiscard]] double at(double noise) const {
+    return factor <= 0.0 ? ceiling : std::max(std::min(floor, ceiling), std::min(ceiling, factor * noise));
+  }
 };
 
 /// \brief A rectangle of full-resolution pixels [x0, x1) x [y0, y1).
@@ -51,32 +67,40 @@ class GradientPyramid {
  public:
   GradientPyramid(int width, int height, int fine_spread, int coarse_spread);
 
-  /// Computes everything for a grey or BGR image of the constructor's size. `min_gradient` in
-  /// grey levels per pixel. Returns false (and computes nothing) when the size differs.
-  bool compute(const image::ImageView& grey, double min_gradient);
-  bool compute(const image::ColourView& bgr, double min_gradient);
+  /// Computes everything for a grey or BGR image of the constructor's size; each level's
+  /// orientations with `t` at that level's noise (OrientationLevel::noise, ::threshold).
+  /// Returns false (and computes nothing) when the size differs.
+  bool compute(const image::ImageView& grey, const GradientThreshold& t);
+  bool compute(const image::ColourView& bgr, const GradientThreshold& t);
   /// The same inside `roi` only (widened to multiples of 4 and clipped to the image); every
   /// gradient, orientation and response outside it is 0 (the colour stage's windows).
-  bool compute(const image::ColourView& bgr, double min_gradient, PixelBox roi);
+  bool compute(const image::ColourView& bgr, const GradientThreshold& t, PixelBox roi);
 
   [[nodiscard]] int width() const { return width_; }
   [[nodiscard]] int height() const { return height_; }
   /// Full-resolution Sobel gradient (8x the gradient in grey levels per pixel).
   [[nodiscard]] std::int16_t gx(int x, int y) const { return gx_[static_cast<std::size_t>(y) * width_ + x]; }
   [[nodiscard]] std::int16_t gy(int x, int y) const { return gy_[static_cast<std::size_t>(y) * width_ + x]; }
+  /// Median of |gx| + |gy| of the full-resolution gradients (grey levels per pixel) over the
+  /// computed box: the frame's noise and texture level.
+  [[nodiscard]] double noise() const { return noise_; }
   [[nodiscard]] const OrientationLevel& fine() const { return fine_; }      ///< 1/2 resolution
   [[nodiscard]] const OrientationLevel& coarse() const { return coarse_; }  ///< 1/4 resolution
 
  private:
-  bool compute_from(const std::uint8_t* data, int stride, int channels, double min_gradient, PixelBox roi);
+  bool compute_from(const std::uint8_t* data, int stride, int channels, const GradientThreshold& t, PixelBox roi);
   /// Orientations, spread and responses of `level` inside `b` (level pixels).
-  void orientations(OrientationLevel& level, int channels, double min_gradient, bool linear, PixelBox b);
+  void orientations(OrientationLevel& level, int channels, const GradientThreshold& t, bool linear, PixelBox b);
+  /// Median of |gx| + |gy| (Sobel units) over box `b` of gradients w values apart per row.
+  int median_l1(const std::int16_t* gx, const std::int16_t* gy, int w, PixelBox b);
   void clear();  // zeroes every gradient, orientation and response
 
   int width_, height_;
   std::vector<std::int16_t> gx_, gy_;
   std::vector<std::int16_t> lgx_, lgy_;  // scratch for the levels
   OrientationLevel fine_, coarse_;
+  double noise_ = 0.0;
+  std::vector<int> hist_;  // median_l1's histogram
 };
 
 }  // namespace v4r::detection
