@@ -44,17 +44,19 @@ void PoseFilter::reset(const SE3& T, const Matrix6d& pose_cov) {
   last_q_.setZero();
 }
 
-void PoseFilter::reset_velocity() {
+void PoseFilter::zero_velocity(double velocity_sigma, double angular_velocity_sigma) {
   vel_.setZero();
   P_.topRightCorner<6, 6>().setZero();
   P_.bottomLeftCorner<6, 6>().setZero();
   P_.bottomRightCorner<6, 6>().setZero();
-  const double sv = p_.init_velocity_sigma * p_.init_velocity_sigma;
-  const double sw = p_.init_angular_velocity_sigma * p_.init_angular_velocity_sigma;
   for (int i = 0; i < 3; ++i) {
-    P_(6 + i, 6 + i) = sv;
-    P_(9 + i, 9 + i) = sw;
+    P_(6 + i, 6 + i) = velocity_sigma * velocity_sigma;
+    P_(9 + i, 9 + i) = angular_velocity_sigma * angular_velocity_sigma;
   }
+}
+
+void PoseFilter::reset_velocity() {
+  zero_velocity(p_.init_velocity_sigma, p_.init_angular_velocity_sigma);
   noise_scale_ = 1.0;
 }
 
@@ -114,14 +116,7 @@ double PoseFilter::velocity_chi2() const {
 
 void PoseFilter::hold_still(double velocity_sigma, double angular_velocity_sigma) {
   if (!initialised_ || !std::isfinite(velocity_sigma) || !std::isfinite(angular_velocity_sigma)) return;
-  vel_.setZero();
-  P_.topRightCorner<6, 6>().setZero();
-  P_.bottomLeftCorner<6, 6>().setZero();
-  P_.bottomRightCorner<6, 6>().setZero();
-  for (int i = 0; i < 3; ++i) {
-    P_(6 + i, 6 + i) = velocity_sigma * velocity_sigma;
-    P_(9 + i, 9 + i) = angular_velocity_sigma * angular_velocity_sigma;
-  }
+  zero_velocity(velocity_sigma, angular_velocity_sigma);
 }
 
 double PoseFilter::innovation_chi2(const SE3& T_meas, const Matrix6d& cov) const {

@@ -108,6 +108,9 @@ class PoseFilter {
   [[nodiscard]] Matrix12d process_noise(double dt) const;
 
  private:
+  /// Zero velocity with the given sigmas, uncorrelated with the pose.
+  void zero_velocity(double velocity_sigma, double angular_velocity_sigma);
+
   PoseFilterParams p_;
   geometry::SE3 T_;
   geometry::Vector6d vel_ = geometry::Vector6d::Zero();
