@@ -75,13 +75,26 @@ std::vector<geometry::SE3> model_symmetries(const model::Model& model, double to
   return out;
 }
 
+namespace {
+
+/// The order of symmetric_pose_error and nearest_symmetric: rotation angle (rad) first, then
+/// translation (an equivalent pose is both close).
+double pose_distance(const geometry::SE3& a, const geometry::SE3& b) {
+  return geometry::rotation_angle_between(a, b) + 10.0 * (a.translation() - b.translation()).norm();
+}
+
+}  // namespace
+
 PoseError symmetric_pose_error(const geometry::SE3& estimate, const geometry::SE3& truth,
                                const std::vector<geometry::SE3>& symmetries) {
   PoseError best{std::numeric_limits<double>::max(), std::numeric_limits<double>::max()};
+  double best_cost = std::numeric_limits<double>::infinity();
   const auto consider = [&](const geometry::SE3& t) {
-    PoseError e{(estimate.translation() - t.translation()).norm(), geometry::rotation_angle_between(estimate, t)};
-    // Ordered by rotation first, then translation (an equivalent pose is both close).
-    if (e.rotation + 10.0 * e.translation < best.rotation + 10.0 * best.translation) best = e;
+    const double cost = pose_distance(estimate, t);
+    if (cost < best_cost) {
+      best_cost = cost;
+      best = PoseError{(estimate.translation() - t.translation()).norm(), geometry::rotation_angle_between(estimate, t)};
+    }
   };
   consider(truth);
   for (const auto& S : symmetries) consider(truth * S);
@@ -91,10 +104,10 @@ PoseError symmetric_pose_error(const geometry::SE3& estimate, const geometry::SE
 geometry::SE3 nearest_symmetric(const geometry::SE3& T, const geometry::SE3& reference,
                                 const std::vector<geometry::SE3>& symmetries) {
   geometry::SE3 best = T;
-  double best_cost = geometry::rotation_angle_between(T, reference) + 10.0 * (T.translation() - reference.translation()).norm();
+  double best_cost = pose_distance(T, reference);
   for (const auto& S : symmetries) {
     const geometry::SE3 TS = T * S;
-    const double cost = geometry::rotation_angle_between(TS, reference) + 10.0 * (TS.translation() - reference.translation()).norm();
+    const double cost = pose_distance(TS, reference);
     if (cost < best_cost) {
       best_cost = cost;
       best = TS;
