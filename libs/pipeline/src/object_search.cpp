@@ -239,8 +239,9 @@ SearchStep search_step(const ObjectSearchParams& p, scene::Scene& scene, std::si
   scene::Object& o = scene.objects()[object];
   if (o.status == scene::TrackStatus::kLost) {
     if (++lost_streak < p.lost_frames || !p.enabled) return SearchStep::kWaiting;
-    // The last pose the image supported, or the prediction held while lost (camera frame).
-    T_cam_last = scene.cameras()[0].T_ref_cam.inverse() * o.T_ref_obj;
+    // The last pose the image supported (reported tracking), else the prediction held while
+    // lost (camera frame).
+    T_cam_last = scene.cameras()[0].T_ref_cam.inverse() * (o.tracked_once ? o.T_ref_obj_tracked : o.T_ref_obj);
     scene.start_search(object);
     return SearchStep::kStarted;
   }

@@ -103,6 +103,10 @@ void update_object(scene::Object& obj, const ObjectMeasurement& m, const CyclePa
     obj.status = scene::TrackStatus::kDegraded;
   }
   obj.quality = accept ? evidence * residual_factor : 0.0;
+  if (obj.status == scene::TrackStatus::kTracking) {
+    obj.T_ref_obj_tracked = obj.T_ref_obj;
+    obj.tracked_once = true;
+  }
   // A pose the image does not support carries the prediction's covariance (the filter's, this
   // frame's time update), which grows with time while nothing is measured; never the last
   // measurement's. (covariance_pred is zero without a running filter.)

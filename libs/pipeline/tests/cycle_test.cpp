@@ -12,6 +12,7 @@
 #include "v4r/detection/template_set.hpp"
 #include "v4r/geometry/look_at.hpp"
 #include "v4r/model/cao_reader.hpp"
+#include "v4r/pipeline/object_search.hpp"
 #include "v4r/pipeline/tracker.hpp"
 #include "v4r/synth/renderer.hpp"
 
@@ -286,4 +287,40 @@ TEST(ObjectSearch, ALostObjectTurnsToSearchingAfterLostFrames) {
   EXPECT_EQ(st[1], scene::TrackStatus::kLost);
   EXPECT_EQ(st[2], scene::TrackStatus::kSearching) << "the third lost frame in a row";
   for (int i = 3; i < 6; ++i) EXPECT_EQ(st[static_cast<std::size_t>(i)], scene::TrackStatus::kSearching) << i;
+}
+
+TEST(ObjectSearch, ARecoveryStartsAtTheLastTrackedPoseNotAtTheDriftedPrediction) {
+  // Frames reported `tracking` record their pose; while the object is lost, the pose held (the
+  // prediction) may have run off, wrongly measured under occlusion or blur. The search after the
+  // loss starts its restarts at the last tracked pose.
+  const Sequence s = make(&synth::box_cao, 0.55, 3);
+  pipeline::SingleObjectTracker tracker(s.model, synth::default_camera());
+  tracker.set_pose(s.truth[0]);
+  ASSERT_EQ(tracker.track(view(s.grey[0])).report.status, scene::TrackStatus::kTracking);
+  scene::Scene& scene = tracker.scene();
+  scene::Object& o = scene.objects()[0];
+  ASSERT_TRUE(o.tracked_once);
+  const geometry::SE3 tracked = o.T_ref_obj_tracked;
+  EXPECT_LT((tracked.translation() - o.T_ref_obj.translation()).norm(), 1e-12);
+  const cv::Mat empty(s.grey[0].rows, s.grey[0].cols, CV_8UC1, cv::Scalar(70));
+  EXPECT_EQ(tracker.track(view(empty)).report.status, scene::TrackStatus::kLost);
+  EXPECT_LT((o.T_ref_obj_tracked.translation() - tracked.translation()).norm(), 1e-12) << "kept while lost";
+  // The held pose drifted 8 cm away: the search starts where the object was last tracked.
+  o.T_ref_obj = geometry::SE3(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.08, 0.0, 0.0)) * tracked;
+  o.status = scene::TrackStatus::kLost;
+  pipeline::ObjectSearchParams sp;
+  sp.lost_frames = 1;
+  int streak = 0;
+  geometry::SE3 T_cam_last;
+  ASSERT_EQ(pipeline::search_step(sp, scene, 0, streak, T_cam_last), pipeline::SearchStep::kStarted);
+  const geometry::SE3 expected = scene.cameras()[0].T_ref_cam.inverse() * tracked;
+  EXPECT_LT((T_cam_last.translation() - expected.translation()).norm(), 1e-9);
+  // A pose set anew (SetPose, a found pose) has not been tracked yet: the held pose is used.
+  scene.set_pose(0, o.T_ref_obj);
+  EXPECT_FALSE(o.tracked_once);
+  o.status = scene::TrackStatus::kLost;
+  streak = 0;
+  ASSERT_EQ(pipeline::search_step(sp, scene, 0, streak, T_cam_last), pipeline::SearchStep::kStarted);
+  EXPECT_LT((T_cam_last.translation() - (scene.cameras()[0].T_ref_cam.inverse() * o.T_ref_obj).translation()).norm(),
+            1e-9);
 }

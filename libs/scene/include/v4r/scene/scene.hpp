@@ -124,6 +124,10 @@ struct Object {
   /// The pose has been measured from the image alone (a `tracking` frame) since it was last set:
   /// only then is the prediction good enough to serve as a prior (a start pose may be far off).
   bool confirmed = false;
+  /// The pose of the last frame reported `tracking` (the image supported it), kept while the
+  /// object is lost or searched: a recovery starts there, not at the prediction held since.
+  geometry::SE3 T_ref_obj_tracked;
+  bool tracked_once = false;  ///< T_ref_obj_tracked is set
 };
 
 /// \brief The scene: cameras and objects, owned by value. Adding an object creates one view per
