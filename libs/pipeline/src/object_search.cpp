@@ -35,6 +35,8 @@ void add_search_params(ParamRegistry& r, ObjectSearchParams& p) {
   r.add("search.refine_cycles", &p.refine_cycles, 1, 20, "", "vision cycles run on a hypothesis (wide windows, then normal)");
   r.add("search.accept_evidence", &p.accept_evidence, 0.0, 1.0, "",
         "share of the projected model's edge samples the image must confirm for a found pose");
+  r.add("search.local_accept_evidence", &p.local_accept_evidence, 0.0, 1.0, "",
+        "the same for a restart around the last tracked pose (then the whole image is not searched on that frame)");
   r.add("search.view_margin", &p.view_margin_deg, 0.0, 180.0, "deg",
         "a found pose must lie in the detector's view range (detect.views.*) widened by this");
   r.add("search.confirm_translation", &p.confirm_translation_m, 0.0, 10.0, "m",
@@ -106,7 +108,8 @@ bool ObjectSearch::in_view_range(const Slot& s, const geometry::SE3& T) const {
   return false;
 }
 
-double ObjectSearch::refine(std::size_t object, const CameraImage& img, double stamp_s, geometry::SE3& T) {
+double ObjectSearch::refine(std::size_t object, const CameraImage& img, double stamp_s, geometry::SE3& T,
+                            double accept_evidence) {
   if (T.translation().z() <= 1e-3) return -1.0;
   probe_scene_.set_pose(object, T);
   scene::Object& o = probe_scene_.objects()[object];
@@ -114,7 +117,7 @@ double ObjectSearch::refine(std::size_t object, const CameraImage& img, double s
     probe_.process(probe_scene_, std::span<const CameraImage>(&img, 1), stamp_s);
     if (o.status == scene::TrackStatus::kUninitialised) break;  // (a fault in the probe: give up on it)
   }
-  const bool ok = o.status == scene::TrackStatus::kTracking && o.evidence >= p_.accept_evidence &&
+  const bool ok = o.status == scene::TrackStatus::kTracking && o.evidence >= accept_evidence &&
                   in_view_range(slots_[object], o.T_ref_obj);
   // Rank: edge samples confirmed, times the square of their share, weighed down by the pose
   // solve's RMS residual as the cycle's quality is (1 / (1 + (rms / 1.5 px)^2)). An edge image
@@ -156,15 +159,16 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
   ++s.search_frames;
   double best = -1.0, best_evidence = 0.0;
   geometry::SE3 T_best;
+  bool best_local = false;
   // The object's tag, if given and seen: a pose of the object must put it where it is seen.
   const detection::TagObservation tag = s.tag ? s.tag->detect(img.grey) : detection::TagObservation{};
-  const auto consider = [&](geometry::SE3 T) {
+  const auto consider = [&](geometry::SE3 T, bool local) {
     if (stop.stop_requested()) {  // shutting down: the hypotheses left are not refined
       rep.cancelled = true;
       return -1.0;
     }
     ++rep.tried;
-    double e = refine(object, img, stamp_s, T);
+    double e = refine(object, img, stamp_s, T, local ? p_.local_accept_evidence : p_.accept_evidence);
     if (e >= 0.0 && tag.found && s.tag->corner_offset_px(tag, T) > p_.tag.max_offset_px) {
       e = -1.0;
       ++rep.tag_vetoed;
@@ -173,13 +177,14 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
       best = e;
       best_evidence = last_evidence_;
       T_best = T;
+      best_local = local;
     }
     return e;
   };
   // (1) Last frame's candidate, tracked on this frame: confirmed when it stays put.
   if (s.have_candidate) {
     geometry::SE3 T = s.T_candidate;
-    const double e = consider(T);
+    const double e = consider(T, s.candidate_local);
     T = T_best;
     const bool close = e >= 0.0 && (T.translation() - s.T_candidate.translation()).norm() <= p_.confirm_translation_m &&
                        geometry::rotation_angle_between(T, s.T_candidate) <= p_.confirm_rotation_deg * kDeg;
@@ -201,32 +206,36 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
   bool tag_accepted = false;
   for (int k = 0; k < tag.poses; ++k) {
     ++rep.tag_poses;
-    if (consider(tag.T_cam_obj[static_cast<std::size_t>(k)]) >= 0.0) tag_accepted = true;
+    if (consider(tag.T_cam_obj[static_cast<std::size_t>(k)], false) >= 0.0) tag_accepted = true;
   }
-  // (3) Perturbed restarts around the last pose (first search frames after a loss).
+  // (3) Perturbed restarts around the last pose (first search frames after a loss); one accepted
+  // makes the whole-image detector unnecessary on this frame.
+  bool local_accepted = false;
   if (!tag_accepted && s.have_last && s.search_frames <= p_.local_frames) {
     const double d = p_.restart_shift * s.radius;
     const Eigen::Vector3d shifts[] = {{0, 0, 0}, {d, 0, 0}, {-d, 0, 0}, {0, d, 0}, {0, -d, 0}, {d, d, 0}, {-d, -d, 0},
                                       {d, -d, 0}, {-d, d, 0}};
     const int n = std::min<int>(p_.restarts + 1, static_cast<int>(std::size(shifts)));
     for (int k = 0; k < n; ++k)
-      consider(geometry::SE3(Eigen::Quaterniond::Identity(), shifts[k]) * s.T_last);
+      if (consider(geometry::SE3(Eigen::Quaterniond::Identity(), shifts[k]) * s.T_last, true) >= 0.0)
+        local_accepted = true;
   }
   // (4) The detector over the whole image.
-  if (!tag_accepted && !stop.stop_requested()) {
+  if (!tag_accepted && !local_accepted && !stop.stop_requested()) {
     const auto td = Clock::now();
     const detection::DetectionResult r =
         img.colour.empty() ? s.detector->detect(img.grey, hyp_) : s.detector->detect(img.colour, hyp_);
     rep.detect_ms = ms_between(td, Clock::now());
     if (r.status == detection::DetectionResult::Status::kOk) {
       const int n = std::min<int>(r.hypotheses, std::min<int>(p_.hypotheses, static_cast<int>(hyp_.size())));
-      for (int k = 0; k < n; ++k) consider(hyp_[static_cast<std::size_t>(k)].T_cam_obj);
+      for (int k = 0; k < n; ++k) consider(hyp_[static_cast<std::size_t>(k)].T_cam_obj, false);
     }
   }
   rep.best_evidence = best >= 0.0 ? best_evidence : 0.0;
   s.have_candidate = best >= 0.0;
   if (s.have_candidate) {
     s.T_candidate = T_best;
+    s.candidate_local = best_local;
     rep.found = true;
   }
   rep.cancelled = rep.cancelled || stop.stop_requested();

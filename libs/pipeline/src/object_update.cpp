@@ -56,6 +56,7 @@ void update_object(scene::Object& obj, const ObjectMeasurement& m, const CyclePa
   const geometry::SE3& T_meas = m.T_ref_obj;
   const geometry::Matrix6d& cov_meas = m.covariance;
   const bool prior_used = m.prior_used;
+  bool jumped = false;  // the measurement is far from the prediction
   if (p.use_filter) {
     if (accept) {
       // A floor on the measurement covariance keeps the filter from trusting a pose more than the
@@ -63,6 +64,7 @@ void update_object(scene::Object& obj, const ObjectMeasurement& m, const CyclePa
       geometry::Matrix6d floor = geometry::Matrix6d::Zero();
       floor.diagonal() << 1e-8, 1e-8, 1e-8, 1e-7, 1e-7, 1e-7;
       const double chi2 = obj.filter.innovation_chi2(T_meas, cov_meas + floor);
+      jumped = p.recovery.jump_chi2 > 0.0 && chi2 > p.recovery.jump_chi2;
       if (ratio < p.degraded_ratio && chi2 > p.recovery.gate_chi2) {
         accept = false;  // a weak measurement far from the prediction: more likely wrong than right
         rep.measurement_rejected = true;
@@ -97,7 +99,7 @@ void update_object(scene::Object& obj, const ObjectMeasurement& m, const CyclePa
   // The reported status: what the image shows at the pose.
   if (!accept || evidence < p.status.lost_evidence) {
     obj.status = scene::TrackStatus::kLost;
-  } else if (evidence >= p.status.tracking_evidence && obj.measured == scene::TrackStatus::kTracking) {
+  } else if (evidence >= p.status.tracking_evidence && obj.measured == scene::TrackStatus::kTracking && !jumped) {
     obj.status = scene::TrackStatus::kTracking;
   } else {
     obj.status = scene::TrackStatus::kDegraded;

@@ -102,6 +102,8 @@ ParamRegistry make_registry(CycleParams& p) {
   r.add("recovery.lost_quality", &p.recovery.lost_quality, 0.0, 1.0, "", "feature quality below this: the measurement is not used");
   r.add("recovery.reset_velocity_after", &p.recovery.reset_velocity_after, 1, 1000, "frames", "bad frames before the velocity is dropped");
   r.add("recovery.gate_chi2", &p.recovery.gate_chi2, 1.0, 1e9, "", "degraded measurements further from the prediction are rejected");
+  r.add("recovery.jump_chi2", &p.recovery.jump_chi2, 0.0, 1e9, "",
+        "measurements further from the prediction are used but reported degraded, not tracking (0: no test)");
   // Status from image evidence.
   auto& st = p.status;
   r.add("status.tracking_evidence", &st.tracking_evidence, 0.0, 1.0, "",

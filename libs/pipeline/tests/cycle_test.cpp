@@ -6,6 +6,7 @@
 #include <new>
 
 #include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
 
 #include "alloc_counter.hpp"
 
@@ -323,4 +324,53 @@ TEST(ObjectSearch, ARecoveryStartsAtTheLastTrackedPoseNotAtTheDriftedPrediction)
   ASSERT_EQ(pipeline::search_step(sp, scene, 0, streak, T_cam_last), pipeline::SearchStep::kStarted);
   EXPECT_LT((T_cam_last.translation() - (scene.cameras()[0].T_ref_cam.inverse() * o.T_ref_obj).translation()).norm(),
             1e-9);
+}
+
+TEST(ObjectSearch, APartlyOccludedObjectIsFoundAgainAroundItsLastPose) {
+  // Lost for three empty frames, the box comes back with its left part behind a grey board:
+  // the image confirms too little of the model for a whole-image detection (accept_evidence),
+  // but a restart around the last tracked pose is accepted as a tracked pose would be
+  // (local_accept_evidence), and confirmed on the next frame.
+  const Sequence s = make(&synth::box_cao, 0.55, 12);
+  detection::DetectorParams dp;
+  auto ts = detection::build_templates(*s.model, synth::default_camera(), dp);
+  ASSERT_TRUE(ts) << ts.error().to_string();
+  const auto templates = std::make_shared<const detection::TemplateSet>(std::move(*ts));
+  synth::Renderer r(synth::default_camera(), synth::RenderOptions{});
+  std::vector<cv::Mat> occluded;
+  for (int i = 6; i < 12; ++i) {
+    // The object's columns: where the render differs from the background alone.
+    const cv::Mat bg = r.render(*s.model, geometry::SE3(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0, 0, -10)), i);
+    cv::Mat diff, mask;
+    cv::absdiff(s.bgr[static_cast<std::size_t>(i)], bg, diff);
+    cv::cvtColor(diff, mask, cv::COLOR_BGR2GRAY);
+    const cv::Rect box = cv::boundingRect(mask > 10);
+    cv::Mat g = s.grey[static_cast<std::size_t>(i)].clone();
+    cv::rectangle(g, cv::Rect(0, 0, box.x + static_cast<int>(0.3 * box.width), g.rows), cv::Scalar(128), cv::FILLED);
+    occluded.push_back(g);
+  }
+  const cv::Mat empty(s.grey[0].rows, s.grey[0].cols, CV_8UC1, cv::Scalar(70));
+  const auto run = [&](double local_accept) {
+    pipeline::ObjectSearchParams sp;
+    sp.local_accept_evidence = local_accept;
+    pipeline::SingleObjectTracker tracker(s.model, synth::default_camera());
+    tracker.enable_search(templates, sp, dp);
+    tracker.set_pose(s.truth[0]);
+    for (int i = 0; i < 3; ++i) EXPECT_EQ(tracker.track(view(s.grey[static_cast<std::size_t>(i)])).report.status, scene::TrackStatus::kTracking);
+    for (int i = 3; i < 6; ++i) (void)tracker.track(view(empty));
+    int first = -1;
+    for (int i = 6; i < 12; ++i) {
+      const pipeline::FrameResult fr = tracker.track(view(occluded[static_cast<std::size_t>(i - 6)]));
+      if (fr.report.status == scene::TrackStatus::kTracking && first < 0) first = i;
+      if (first >= 0) {
+        EXPECT_EQ(fr.report.status, scene::TrackStatus::kTracking) << i;
+        EXPECT_LT((fr.T_cam_obj.translation() - s.truth[static_cast<std::size_t>(i)].translation()).norm(), 0.01) << i;
+      }
+      std::printf("[occluded return] accept %.2f frame %d: %s, search evidence %.2f\n", local_accept, i,
+                  scene::to_string(fr.report.status), fr.search.best_evidence);
+    }
+    return first;
+  };
+  EXPECT_EQ(run(0.5), 7) << "accepted around the last pose on its return (frame 6), confirmed on frame 7";
+  EXPECT_EQ(run(0.7), -1) << "at the whole-image threshold the occluded box is not accepted";
 }

@@ -29,6 +29,10 @@ struct RecoveryParams {
   double lost_quality = 0.15;     ///< feature quality (used/visible, residuals) below this: the measurement is not used
   int reset_velocity_after = 2;   ///< lost frames after which the filter's velocity is dropped
   double gate_chi2 = 400.0;       ///< a degraded measurement this far from the prediction (chi^2, 6 dof) is rejected
+  /// A measurement this far from the prediction (chi^2, 6 dof) is a jump the motion so far does
+  /// not explain: used, but reported `degraded` (an edge image also fits a wrong pose, under
+  /// occlusion or blur), so that a recovery does not start from it. 0: no such test.
+  double jump_chi2 = 150.0;
 };
 
 /// \brief The status from image evidence: after the solve, samples along the whole projected

@@ -28,6 +28,11 @@ struct ObjectSearchParams {
   /// A refined hypothesis is accepted when the cycle reports `tracking` on it and this share of
   /// the projected model's edge samples is confirmed by the image (features::EdgeEvidence).
   double accept_evidence = 0.7;
+  /// A perturbed restart around the last tracked pose is accepted at this share, as a tracked
+  /// pose is (status.tracking_evidence): the last pose is a prior the whole-image detector lacks,
+  /// and the object may still be partly occluded. One accepted: the detector is not run on
+  /// that frame (around the last pose first, then the whole image).
+  double local_accept_evidence = 0.5;
   /// A found pose must lie in the detector's view range (detect.views.*: elevation, in-plane
   /// turn, distance) widened by this many degrees (distance: by the ratio 1 + margin / 45),
   /// modulo the model's symmetries: an edge image can fit a turned and farther box as well as
@@ -88,8 +93,8 @@ void set_found_pose(scene::Scene& scene, std::size_t object, const geometry::SE3
 /// row turns to `searching`. A searching object is looked for on camera 0: (1) the candidate of
 /// the last frame, if any, tracked on this frame; (2) with set_tag_start, both poses of the
 /// object's AprilTag; unless one of them was accepted: (3) on the first local_frames search
-/// frames, perturbed restarts around the last pose; (4) the detector's best hypotheses over the
-/// whole image (detection::Detector). Every hypothesis is refined by the tracker itself (a private
+/// frames, perturbed restarts around the last pose (accepted at local_accept_evidence); unless one
+/// of them was accepted: (4) the detector's best hypotheses over the whole image (detection::Detector). Every hypothesis is refined by the tracker itself (a private
 /// VisionCycle run refine_cycles times on it: features not found yet are searched in the wide
 /// window, then tracked in the normal one) and accepted by the cycle's own status test: the
 /// share of the whole projected model's edge samples that the image confirms
@@ -149,6 +154,7 @@ class ObjectSearch {
     geometry::SE3 T_last;
     bool have_candidate = false; // accepted on the previous frame, to be confirmed
     geometry::SE3 T_candidate;
+    bool candidate_local = false;  // the candidate came from a restart around the last pose
     double radius = 0.0;         // model bounding radius, m
     Eigen::Vector3d centre = Eigen::Vector3d::Zero();
     detection::ViewRange range;  // resolved for the model and camera
@@ -159,7 +165,7 @@ class ObjectSearch {
   [[nodiscard]] bool in_view_range(const Slot& s, const geometry::SE3& T) const;
   /// Refines T (camera frame) with the private cycle; returns its rank (edge samples the image
   /// confirms) if accepted, else -1; its edge evidence (share) in last_evidence_.
-  double refine(std::size_t object, const CameraImage& img, double stamp_s, geometry::SE3& T);
+  double refine(std::size_t object, const CameraImage& img, double stamp_s, geometry::SE3& T, double accept_evidence);
 
   ObjectSearchParams p_;
   detection::DetectorParams dp_;
