@@ -371,6 +371,7 @@ TEST(ObjectSearch, APartlyOccludedObjectIsFoundAgainAroundItsLastPose) {
     }
     return first;
   };
-  EXPECT_EQ(run(0.5), 7) << "accepted around the last pose on its return (frame 6), confirmed on frame 7";
+  EXPECT_EQ(run(pipeline::ObjectSearchParams{}.local_accept_evidence), 7)
+      << "accepted around the last pose on its return (frame 6), confirmed on frame 7";
   EXPECT_EQ(run(0.7), -1) << "at the whole-image threshold the occluded box is not accepted";
 }

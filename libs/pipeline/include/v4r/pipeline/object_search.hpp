@@ -28,11 +28,12 @@ struct ObjectSearchParams {
   /// A refined hypothesis is accepted when the cycle reports `tracking` on it and this share of
   /// the projected model's edge samples is confirmed by the image (features::EdgeEvidence).
   double accept_evidence = 0.7;
-  /// A perturbed restart around the last tracked pose is accepted at this share, as a tracked
-  /// pose is (status.tracking_evidence): the last pose is a prior the whole-image detector lacks,
-  /// and the object may still be partly occluded. One accepted: the detector is not run on
-  /// that frame (around the last pose first, then the whole image).
-  double local_accept_evidence = 0.5;
+  /// A perturbed restart around the last tracked pose is accepted at this share, between a
+  /// tracked pose's (status.tracking_evidence) and a detection's (accept_evidence): the last pose
+  /// is a prior the whole-image detector lacks, and the object may still be partly occluded.
+  /// One accepted: the detector is not run on that frame (around the last pose first, then the
+  /// whole image).
+  double local_accept_evidence = 0.6;
   /// A found pose must lie in the detector's view range (detect.views.*: elevation, in-plane
   /// turn, distance) widened by this many degrees (distance: by the ratio 1 + margin / 45),
   /// modulo the model's symmetries: an edge image can fit a turned and farther box as well as
