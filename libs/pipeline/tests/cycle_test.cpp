@@ -329,8 +329,8 @@ TEST(ObjectSearch, ARecoveryStartsAtTheLastTrackedPoseNotAtTheDriftedPrediction)
 TEST(ObjectSearch, APartlyOccludedObjectIsFoundAgainAroundItsLastPose) {
   // Lost for three empty frames, the box comes back with its left part behind a grey board:
   // the image confirms too little of the model for a whole-image detection (accept_evidence),
-  // but a restart around the last tracked pose is accepted as a tracked pose would be
-  // (local_accept_evidence), and confirmed on the next frame.
+  // but a restart around the last tracked pose is accepted at the lower local_accept_evidence
+  // (the last pose is a prior), and confirmed on the next frame.
   const Sequence s = make(&synth::box_cao, 0.55, 12);
   detection::DetectorParams dp;
   auto ts = detection::build_templates(*s.model, synth::default_camera(), dp);
@@ -356,7 +356,8 @@ TEST(ObjectSearch, APartlyOccludedObjectIsFoundAgainAroundItsLastPose) {
     pipeline::SingleObjectTracker tracker(s.model, synth::default_camera());
     tracker.enable_search(templates, sp, dp);
     tracker.set_pose(s.truth[0]);
-    for (int i = 0; i < 3; ++i) EXPECT_EQ(tracker.track(view(s.grey[static_cast<std::size_t>(i)])).report.status, scene::TrackStatus::kTracking);
+    for (int i = 0; i < 3; ++i)
+      EXPECT_EQ(tracker.track(view(s.grey[static_cast<std::size_t>(i)])).report.status, scene::TrackStatus::kTracking);
     for (int i = 3; i < 6; ++i) (void)tracker.track(view(empty));
     int first = -1;
     for (int i = 6; i < 12; ++i) {

@@ -95,7 +95,8 @@ void set_found_pose(scene::Scene& scene, std::size_t object, const geometry::SE3
 /// the last frame, if any, tracked on this frame; (2) with set_tag_start, both poses of the
 /// object's AprilTag; unless one of them was accepted: (3) on the first local_frames search
 /// frames, perturbed restarts around the last pose (accepted at local_accept_evidence); unless one
-/// of them was accepted: (4) the detector's best hypotheses over the whole image (detection::Detector). Every hypothesis is refined by the tracker itself (a private
+/// of them was accepted: (4) the detector's best hypotheses over the whole image
+/// (detection::Detector). Every hypothesis is refined by the tracker itself (a private
 /// VisionCycle run refine_cycles times on it: features not found yet are searched in the wide
 /// window, then tracked in the normal one) and accepted by the cycle's own status test: the
 /// share of the whole projected model's edge samples that the image confirms
