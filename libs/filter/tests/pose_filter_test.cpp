@@ -113,6 +113,13 @@ double rot_error(const SE3& est, const SE3& truth) { return v4r::geometry::rotat
 
 SE3 start_pose() { return SE3::from_rvec({0.05, -0.02, 0.7}, {0.3, -0.5, 0.2}); }
 
+/// A measurement of `truth` with independent Gaussian noise of covariance diag(R) (left tangent).
+SE3 noisy_measurement(const SE3& truth, const Matrix6d& R, std::mt19937& rng, std::normal_distribution<double>& g) {
+  Vector6d e;
+  for (int i = 0; i < 6; ++i) e[i] = g(rng) * std::sqrt(R(i, i));
+  return SE3::exp(e) * truth;
+}
+
 }  // namespace
 
 TEST(PoseFilter, ReferenceLogInvertsExp) {
@@ -514,9 +521,7 @@ TEST(PoseFilter, AdaptiveNoiseHoldsARestingObjectStillAndFollowsAJumpAtOnce) {
   double se = 0.0, se_plain = 0.0;
   int n = 0;
   for (int k = 0; k < 120; ++k) {
-    Vector6d e;
-    for (int i = 0; i < 6; ++i) e[i] = g(rng) * std::sqrt(R(i, i));
-    const SE3 meas = SE3::exp(e) * truth;
+    const SE3 meas = noisy_measurement(truth, R, rng, g);
     f.predict(1.0 / 30.0);
     plain.predict(1.0 / 30.0);
     f.update(meas, R);
@@ -555,9 +560,7 @@ TEST(PoseFilter, VelocityChi2AndHoldStill) {
   double se_held = 0.0, se_free = 0.0;
   int n = 0, quiet = 0;
   for (int k = 0; k < 60; ++k) {
-    Vector6d e;
-    for (int i = 0; i < 6; ++i) e[i] = g(rng) * std::sqrt(R(i, i));
-    const SE3 meas = SE3::exp(e) * truth;
+    const SE3 meas = noisy_measurement(truth, R, rng, g);
     for (PoseFilter* f : {&full, &held, &free}) f->predict(1.0 / 30.0);
     full.update(meas, R);
     if (full.velocity_chi2() <= 4.0) ++quiet;  // at rest, the velocity is insignificant
