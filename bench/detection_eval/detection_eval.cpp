@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include <CLI/CLI.hpp>
 #include <fmt/format.h>
 
 #include "../../libs/detection/tests/detection_scenes.hpp"
@@ -138,14 +139,15 @@ int main(int argc, char** argv) {
   std::string models_arg = "box,ship,flange,section,mesh";
   std::vector<std::string> sets;
   std::string scenes_arg = "all";
-  for (int i = 1; i + 1 < argc; i += 2) {
-    if (!std::strcmp(argv[i], "--images")) images = std::atoi(argv[i + 1]);
-    else if (!std::strcmp(argv[i], "--empty")) empty = std::atoi(argv[i + 1]);
-    else if (!std::strcmp(argv[i], "--models")) models_arg = argv[i + 1];
-    else if (!std::strcmp(argv[i], "--set")) sets.emplace_back(argv[i + 1]);
-    else if (!std::strcmp(argv[i], "--scenes")) scenes_arg = argv[i + 1];
-    else if (!std::strcmp(argv[i], "--sponge")) sponge = std::atoi(argv[i + 1]);
-  }
+  CLI::App app{"The detector's success, false accepts and time per model and scene condition (issue 10)"};
+  app.add_option("--images", images, "images per model and scene condition")->check(CLI::NonNegativeNumber);
+  app.add_option("--empty", empty, "object-free images for the false accepts")->check(CLI::NonNegativeNumber);
+  app.add_option("--models", models_arg, "comma-separated: box, ship, flange, section, mesh");
+  app.add_option("--scenes", scenes_arg, "comma-separated: plain, textured, clutter, noise, blur, occlusion30, or all");
+  app.add_option("--set", sets, "a detector parameter: --set detect.x=y (repeatable)");
+  app.add_option("--sponge", sponge, "only the colour stage: this many sponge images with and without it")
+      ->check(CLI::NonNegativeNumber);
+  CLI11_PARSE(app, argc, argv);
   std::vector<std::string> models;
   std::stringstream ss(models_arg);
   for (std::string m; std::getline(ss, m, ',');) models.push_back(m);
