@@ -6,9 +6,10 @@
     /usr/bin/python3 bench/compare_visp.py --shared-bench /work/shared/bench --data /tmp/v4r-bench
 
 What it does (run from anywhere; paths default relative to this repository):
-1. generates the benchmark into --data (default /tmp/v4r-bench) if any selected sequence is
-   missing: `make_sequences.py --out DATA --jobs 2` of --shared-bench (default ../shared/bench next
-   to the repository);
+1. generates the benchmark into --data (default /tmp/v4r-bench) if it holds none of the selected
+   sequences: `make_sequences.py --out DATA --jobs 2` of --shared-bench (default ../shared/bench
+   next to the repository); a folder holding only some of them is left alone and named (it may be
+   another instance of the benchmark, which the generator would overwrite);
 2. compiles bench/visp/visp_track.cpp with `g++ -O2 $(pkg-config --cflags --libs visp)` into
    build/visp/visp_track when the binary is missing or older than the source (needs libvisp-dev;
    ViSP is never linked into v4r);
@@ -61,6 +62,13 @@ def ensure_benchmark(args, names):
     missing = [s for s in names if not is_sequence(os.path.join(args.data, s))]
     if not missing:
         return
+    present = [s for s in names if s not in missing]
+    if present:
+        # A folder that holds some of the sequences may come from another generator or other seeds
+        # (a second instance): filling it up would overwrite those with the development split.
+        sys.exit('compare_visp: %s holds %d of the selected sequences but not %s; not generating into it '
+                 '(select what is there with --only, or give an empty --data folder)'
+                 % (args.data, len(present), ', '.join(missing)))
     gen = os.path.join(args.shared_bench, 'make_sequences.py')
     if not os.path.exists(gen):
         sys.exit('compare_visp: %d sequences missing in %s and no generator at %s (--shared-bench)'
