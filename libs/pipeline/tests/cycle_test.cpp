@@ -330,7 +330,9 @@ TEST(ObjectSearch, APartlyOccludedObjectIsFoundAgainAroundItsLastPose) {
   // Lost for three empty frames, the box comes back with its left part behind a grey board:
   // the image confirms too little of the model for a whole-image detection (accept_evidence),
   // but a restart around the last tracked pose is accepted at the lower local_accept_evidence
-  // (the last pose is a prior), and confirmed on the next frame.
+  // (the last pose is a prior), and confirmed on the next frame. The same after 25 empty frames
+  // (22 search frames): the restarts are still tried (search.local_frames); when they stop after
+  // 10 search frames, the box is not found again.
   const Sequence s = make(&synth::box_cao, 0.55, 12);
   detection::DetectorParams dp;
   auto ts = detection::build_templates(*s.model, synth::default_camera(), dp);
@@ -350,15 +352,17 @@ TEST(ObjectSearch, APartlyOccludedObjectIsFoundAgainAroundItsLastPose) {
     occluded.push_back(g);
   }
   const cv::Mat empty(s.grey[0].rows, s.grey[0].cols, CV_8UC1, cv::Scalar(70));
-  const auto run = [&](double local_accept) {
+  const auto run = [&](double local_accept, int empty_frames = 3,
+                       int local_frames = pipeline::ObjectSearchParams{}.local_frames) {
     pipeline::ObjectSearchParams sp;
     sp.local_accept_evidence = local_accept;
+    sp.local_frames = local_frames;
     pipeline::SingleObjectTracker tracker(s.model, synth::default_camera());
     tracker.enable_search(templates, sp, dp);
     tracker.set_pose(s.truth[0]);
     for (int i = 0; i < 3; ++i)
       EXPECT_EQ(tracker.track(view(s.grey[static_cast<std::size_t>(i)])).report.status, scene::TrackStatus::kTracking);
-    for (int i = 3; i < 6; ++i) (void)tracker.track(view(empty));
+    for (int i = 0; i < empty_frames; ++i) (void)tracker.track(view(empty));
     int first = -1;
     for (int i = 6; i < 12; ++i) {
       const pipeline::FrameResult fr = tracker.track(view(occluded[static_cast<std::size_t>(i - 6)]));
@@ -367,12 +371,15 @@ TEST(ObjectSearch, APartlyOccludedObjectIsFoundAgainAroundItsLastPose) {
         EXPECT_EQ(fr.report.status, scene::TrackStatus::kTracking) << i;
         EXPECT_LT((fr.T_cam_obj.translation() - s.truth[static_cast<std::size_t>(i)].translation()).norm(), 0.01) << i;
       }
-      std::printf("[occluded return] accept %.2f frame %d: %s, search evidence %.2f\n", local_accept, i,
-                  scene::to_string(fr.report.status), fr.search.best_evidence);
+      std::printf("[occluded return] accept %.2f, %d empty frames, local frames %d, frame %d: %s, search evidence %.2f\n",
+                  local_accept, empty_frames, local_frames, i, scene::to_string(fr.report.status), fr.search.best_evidence);
     }
     return first;
   };
   EXPECT_EQ(run(pipeline::ObjectSearchParams{}.local_accept_evidence), 7)
       << "accepted around the last pose on its return (frame 6), confirmed on frame 7";
   EXPECT_EQ(run(0.7), -1) << "at the whole-image threshold the occluded box is not accepted";
+  const double accept = pipeline::ObjectSearchParams{}.local_accept_evidence;
+  EXPECT_EQ(run(accept, 25), 7) << "still looked for around its last pose after 22 search frames";
+  EXPECT_EQ(run(accept, 25, 10), -1) << "restarts only on the first 10 search frames: not found again";
 }

@@ -20,7 +20,11 @@ namespace v4r::pipeline {
 struct ObjectSearchParams {
   bool enabled = true;           ///< objects lost for lost_frames are searched again
   int lost_frames = 3;           ///< frames reported `lost` in a row after which an object is searched
-  int local_frames = 10;         ///< search frames on which perturbed restarts around the last pose are tried
+  /// Search frames on which perturbed restarts around the last pose are tried (10 s at 30 fps): a
+  /// lost object is most often still near where it was lost, under blur or behind something, and
+  /// the restarts cost a fraction of the whole-image detector. (10 frames lost the blurred thin
+  /// plates of the benchmark for 50-100 frames, which the detector did not find.)
+  int local_frames = 300;
   int restarts = 4;              ///< perturbed restarts per search frame (around the last pose)
   double restart_shift = 0.5;    ///< restart offsets across the view: this times the model's bounding radius
   int hypotheses = 10;           ///< best detector hypotheses refined by the tracker per search frame
