@@ -48,6 +48,8 @@ void add_params(ParamRegistry& r, DetectorParams& p) {
   auto& f = p.verify;
   r.add("detect.verify.sample_spacing", &f.sample_spacing_px, 1.0, 50.0, "px", "spacing of the projected model's edge samples");
   r.add("detect.verify.max_samples", &f.max_samples, 16, 4096, "", "edge samples per pose at most");
+  r.add("detect.verify.refine_samples", &f.refine_samples, 16, 4096, "",
+        "edge samples per pose at most in the refinement (depth scan and iterations)");
   r.add("detect.verify.refine_search", &f.refine_search_px, 1.0, 64.0, "px", "search range along the normal of the first refinement pass");
   r.add("detect.verify.depth_scan_steps", &f.depth_scan_steps, 0, 20, "", "distances tried either side of a hypothesis before its refinement");
   r.add("detect.verify.depth_scan_step", &f.depth_scan_step, 0.001, 0.5, "", "relative distance step of that scan");

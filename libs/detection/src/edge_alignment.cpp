@@ -10,6 +10,15 @@ namespace v4r::detection {
 
 namespace {
 constexpr double kDeg = 3.14159265358979323846 / 180.0;
+
+/// Nearest pixel index, floor(v + 0.5) (std::lround is a library call in this inner loop);
+/// a coordinate far outside any image gives an index every bounds test rejects.
+inline int round_px(double v) {
+  if (!(v > -1e6 && v < 1e6)) return -1000000;
+  const double h = v + 0.5;
+  const int i = static_cast<int>(h);
+  return h < i ? i - 1 : i;
+}
 }
 
 EdgeAligner::EdgeAligner(const model::Model& model, const geometry::PinholeCamera& cam, const DetectorParams& p)
@@ -28,8 +37,8 @@ double EdgeAligner::search(const GradientPyramid& g, const Eigen::Vector2d& px, 
   double best = 0.0, best_t = std::numeric_limits<double>::quiet_NaN();
   const int steps = static_cast<int>(range);
   for (int k = -steps; k <= steps; ++k) {
-    const int x = static_cast<int>(std::lround(px.x() + k * n.x()));
-    const int y = static_cast<int>(std::lround(px.y() + k * n.y()));
+    const int x = round_px(px.x() + k * n.x());
+    const int y = round_px(px.y() + k * n.y());
     if (x < 1 || y < 1 || x >= w - 1 || y >= h - 1) continue;
     const double gx = g.gx(x, y), gy = g.gy(x, y);
     const double m2 = gx * gx + gy * gy;
@@ -51,8 +60,13 @@ void EdgeAligner::set_threshold(const GradientPyramid& g) {
   min_sobel2_ = 64.0 * t * t;  // Sobel is 8x the gradient
 }
 
+std::span<EdgeSample> EdgeAligner::refine_buffer() {
+  return std::span<EdgeSample>(samples_).first(
+      std::min(samples_.size(), static_cast<std::size_t>(std::max(16, p_.refine_samples))));
+}
+
 double EdgeAligner::loose_share(const GradientPyramid& g, const geometry::SE3& T, double range) {
-  const std::size_t n = projector_.sample(T, cam_, p_.sample_spacing_px, samples_);
+  const std::size_t n = projector_.sample(T, cam_, p_.sample_spacing_px, refine_buffer());
   if (n < 12) return 0.0;
   int hit = 0;
   for (std::size_t i = 0; i < n; ++i)
@@ -83,7 +97,7 @@ int EdgeAligner::refine(const GradientPyramid& g, geometry::SE3& T) {
     // Search range: full for the first third, then shrinking to 2 match distances.
     const double f = iters <= 1 ? 0.0 : static_cast<double>(it) / (iters - 1);
     const double range = std::max(2.0 * p_.match_distance_px, p_.refine_search_px * (f < 0.34 ? 1.0 : (1.0 - f) * 1.5));
-    const std::size_t n = projector_.sample(T, cam_, p_.sample_spacing_px, samples_);
+    const std::size_t n = projector_.sample(T, cam_, p_.sample_spacing_px, refine_buffer());
     if (n < 12) break;
     geometry::Matrix6d H = geometry::Matrix6d::Zero();
     geometry::Vector6d b = geometry::Vector6d::Zero();
@@ -145,8 +159,8 @@ Verification EdgeAligner::verify(const GradientPyramid& g, const geometry::SE3& 
     for (int k = -steps; k <= steps; ++k) {
       const double t = 0.5 * k;
       if (std::abs(t) > p_.match_distance_px) continue;
-      const int x = static_cast<int>(std::lround(s.px.x() + t * s.normal.x()));
-      const int y = static_cast<int>(std::lround(s.px.y() + t * s.normal.y()));
+      const int x = round_px(s.px.x() + t * s.normal.x());
+      const int y = round_px(s.px.y() + t * s.normal.y());
       if (x < 1 || y < 1 || x >= w - 1 || y >= h - 1) continue;
       const double gx = g.gx(x, y), gy = g.gy(x, y);
       const double m2 = gx * gx + gy * gy;
@@ -158,8 +172,8 @@ Verification EdgeAligner::verify(const GradientPyramid& g, const geometry::SE3& 
       // ramps would otherwise match any nearby pose).
       bool peak = true;
       for (const int d : {-1, 1}) {
-        const int xn = static_cast<int>(std::lround(s.px.x() + (t + d) * s.normal.x()));
-        const int yn = static_cast<int>(std::lround(s.px.y() + (t + d) * s.normal.y()));
+        const int xn = round_px(s.px.x() + (t + d) * s.normal.x());
+        const int yn = round_px(s.px.y() + (t + d) * s.normal.y());
         if (xn < 1 || yn < 1 || xn >= w - 1 || yn >= h - 1) continue;
         const double next = std::abs(g.gx(xn, yn) * s.normal.x() + g.gy(xn, yn) * s.normal.y());
         if (next > p_.peak_tolerance * std::abs(dot)) peak = false;

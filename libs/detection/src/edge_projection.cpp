@@ -19,6 +19,9 @@ EdgeProjector::EdgeProjector(const model::Model& model, double crease_angle)
   // Worst case: every line, every arc and two limbs per cylinder.
   pieces_.reserve(model.lines().size() + model.arcs().size() + 2 * model.cylinders().size());
   piece_len_.reserve(pieces_.capacity());
+  piece_lo_.reserve(pieces_.capacity());
+  piece_hi_.reserve(pieces_.capacity());
+  occluders_.reserve(faces_.size());
 }
 
 void EdgeProjector::prepare(const geometry::SE3& T, const geometry::PinholeCamera& cam) {
@@ -118,13 +121,23 @@ Eigen::Vector3d EdgeProjector::piece_point(const Piece& pc, double s) const {
   return a.center + a.radius * (std::cos(th) * a.x_axis + std::sin(th) * y);
 }
 
-bool EdgeProjector::hidden(const Eigen::Vector3d& p_cam, model::Index fa, model::Index fb, int own_cylinder) const {
-  if (p_cam.z() <= 1e-6) return true;
-  const Eigen::Vector2d q(p_cam.x() / p_cam.z(), p_cam.y() / p_cam.z());
-  const Eigen::Vector3d ray(q.x(), q.y(), 1.0);
+void EdgeProjector::collect_occluders(const Eigen::Vector2d& lo, const Eigen::Vector2d& hi, model::Index fa,
+                                      model::Index fb) {
+  occluders_.clear();
   for (std::size_t fi = 0; fi < faces_.size(); ++fi) {
     const FaceCache& f = faces_[fi];
     if (!f.front || fi == fa || fi == fb) continue;
+    if (hi.x() < f.lo.x() || hi.y() < f.lo.y() || lo.x() > f.hi.x() || lo.y() > f.hi.y()) continue;
+    occluders_.push_back(static_cast<std::uint32_t>(fi));
+  }
+}
+
+bool EdgeProjector::hidden(const Eigen::Vector3d& p_cam, int own_cylinder) const {
+  if (p_cam.z() <= 1e-6) return true;
+  const Eigen::Vector2d q(p_cam.x() / p_cam.z(), p_cam.y() / p_cam.z());
+  const Eigen::Vector3d ray(q.x(), q.y(), 1.0);
+  for (const std::uint32_t fi : occluders_) {
+    const FaceCache& f = faces_[fi];
     if (q.x() < f.lo.x() || q.y() < f.lo.y() || q.x() > f.hi.x() || q.y() > f.hi.y()) continue;
     const double den = f.n_cam.dot(ray);
     if (std::abs(den) < 1e-12) continue;
@@ -149,18 +162,47 @@ std::size_t EdgeProjector::sample(const geometry::SE3& T, const geometry::Pinhol
   if (out.empty()) return 0;
   prepare(T, cam);
   // Projected length of every piece (polyline of 16 segments), to share the samples out.
+  // and its box in normalised image coordinates (points in front of the camera; an arc's
+  // polyline box grown by the largest gap between its chord and the arc).
   piece_len_.clear();
+  piece_lo_.clear();
+  piece_hi_.clear();
   double total = 0.0;
   for (const Piece& pc : pieces_) {
     double len = 0.0;
+    Eigen::Vector2d lo = Eigen::Vector2d::Constant(1e300), hi = Eigen::Vector2d::Constant(-1e300);
     Eigen::Vector3d prev = T * piece_point(pc, 0.0);
+    bool behind = false;  // part of the piece is behind the camera: its box is unbounded
+    const auto grow = [&](const Eigen::Vector3d& p) {
+      if (p.z() <= 1e-6) {
+        behind = true;
+        return;
+      }
+      const Eigen::Vector2d q(p.x() / p.z(), p.y() / p.z());
+      lo = lo.cwiseMin(q);
+      hi = hi.cwiseMax(q);
+    };
+    grow(prev);
     const int n = pc.arc < 0 ? 1 : 16;
     for (int k = 1; k <= n; ++k) {
       const Eigen::Vector3d cur = T * piece_point(pc, static_cast<double>(k) / n);
       if (prev.z() > 1e-6 && cur.z() > 1e-6) len += (cam.project(cur) - cam.project(prev)).norm();
+      grow(cur);
       prev = cur;
     }
+    if (pc.arc >= 0) {
+      // The arc bulges past its 16-segment polyline by at most r (1 - cos(pi / 16)) of its span.
+      const Eigen::Vector2d pad = 0.02 * (hi - lo).cwiseMax(0.0) + Eigen::Vector2d::Constant(1e-9);
+      lo -= pad;
+      hi += pad;
+    }
+    if (behind) {
+      lo = Eigen::Vector2d::Constant(-1e300);
+      hi = Eigen::Vector2d::Constant(1e300);
+    }
     piece_len_.push_back(len);
+    piece_lo_.push_back(lo);
+    piece_hi_.push_back(hi);
     total += len;
   }
   if (total <= 0.0) return 0;
@@ -170,6 +212,8 @@ std::size_t EdgeProjector::sample(const geometry::SE3& T, const geometry::Pinhol
   for (std::size_t pi = 0; pi < pieces_.size() && count < out.size(); ++pi) {
     const Piece& pc = pieces_[pi];
     const int n = static_cast<int>(piece_len_[pi] / spacing);
+    if (n <= 0) continue;
+    collect_occluders(piece_lo_[pi], piece_hi_[pi], pc.face_a, pc.face_b);
     for (int k = 0; k < n && count < out.size(); ++k) {
       const double s = (k + 0.5) / n;
       const Eigen::Vector3d X = piece_point(pc, s);
@@ -177,7 +221,7 @@ std::size_t EdgeProjector::sample(const geometry::SE3& T, const geometry::Pinhol
       if (Xc.z() <= 1e-6) continue;
       const Eigen::Vector2d px = cam.project(Xc);
       if (bounds && !cam.in_image(px, margin_px)) continue;
-      if (hidden(Xc, pc.face_a, pc.face_b, pc.cylinder)) continue;
+      if (hidden(Xc, pc.cylinder)) continue;
       // Tangent of the projected curve by a small step along it.
       const double ds = 0.25 / std::max(1, n);
       const Eigen::Vector3d Xa = T * piece_point(pc, s - ds), Xb = T * piece_point(pc, s + ds);

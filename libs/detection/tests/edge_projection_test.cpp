@@ -4,6 +4,7 @@
 
 #include "v4r/detection/edge_projection.hpp"
 #include "v4r/geometry/look_at.hpp"
+#include "v4r/geometry/polygon.hpp"
 #include "v4r/model/cao_reader.hpp"
 #include "v4r/synth/renderer.hpp"
 
@@ -79,4 +80,49 @@ TEST(EdgeProjector, FlangeShowsCylinderLimbsAndHidesTheBackOfTheBottomRim) {
   EXPECT_GT(limb, 10);
   EXPECT_GT(rim_front, 5);
   EXPECT_EQ(rim_back, 0);  // behind the cylinder
+}
+
+// The projector tests a sample only against the front faces whose image boxes overlap its
+// edge's; an exhaustive test against every face of the model agrees: no returned sample has a
+// front face (other than the faces it lies on) between it and the camera. The ship section
+// (plates, a frame and brackets) hides much of itself from most directions.
+TEST(EdgeProjector, NoReturnedSampleIsBehindAnyFaceOfTheShipSection) {
+  const model::Model section = load(synth::ship_section_cao());
+  const geometry::PinholeCamera cam = synth::default_camera();
+  EdgeProjector proj(section, 0.17);
+  std::vector<EdgeSample> s(3000);
+  std::vector<Eigen::Vector2d> poly;
+  int hidden_by_faces = 0, checked = 0;
+  for (int k = 0; k < 24; ++k) {
+    const geometry::SE3 T = geometry::look_at(0.9, 0.27 * k, 0.2 + 0.05 * (k % 12));
+    const std::size_t n = proj.sample(T, cam, 2.0, s);
+    ASSERT_GT(n, 100u) << "pose " << k;
+    const Eigen::Vector3d cam_obj = T.inverse().translation();
+    for (std::size_t i = 0; i < n; ++i) {
+      const Eigen::Vector3d Xc = T * s[i].p_obj;
+      const Eigen::Vector2d q(Xc.x() / Xc.z(), Xc.y() / Xc.z());
+      ++checked;
+      for (const model::Face& f : section.faces()) {
+        const Eigen::Vector3d p0 = section.junctions()[f.loop[0]].p;
+        if (f.normal.dot(cam_obj - p0) <= 0.0) continue;                 // a back face
+        if (std::abs(f.normal.dot(s[i].p_obj - p0)) < 1e-7) continue;     // the sample lies on it
+        const Eigen::Vector3d n_cam = T.rotation() * f.normal;
+        const double den = n_cam.dot(Eigen::Vector3d(q.x(), q.y(), 1.0));
+        if (std::abs(den) < 1e-12) continue;
+        const double z = n_cam.dot(T * p0) / den;
+        if (z <= 0.0 || z >= Xc.z() * (1.0 - 1e-3)) continue;  // behind the sample
+        poly.clear();
+        for (const model::Index j : f.loop) {
+          const Eigen::Vector3d pc = T * section.junctions()[j].p;
+          poly.emplace_back(pc.x() / pc.z(), pc.y() / pc.z());
+        }
+        if (geometry::inside_polygon(q, poly.data(), static_cast<std::uint32_t>(poly.size()))) {
+          ++hidden_by_faces;
+          break;
+        }
+      }
+    }
+  }
+  EXPECT_GT(checked, 5000);
+  EXPECT_EQ(hidden_by_faces, 0);
 }

@@ -56,6 +56,9 @@ struct SearchParams {
 struct VerifyParams {
   double sample_spacing_px = 5.0;   ///< px between edge samples of the projected model
   int max_samples = 400;            ///< at most this many samples (spacing grows on large views)
+  /// At most this many samples in the refinement's depth scan and iterations (verification uses
+  /// max_samples): six degrees of freedom need far fewer than the verdict does.
+  int refine_samples = 120;
   double refine_search_px = 12.0;   ///< px searched along the normal in the first refinement pass
   int depth_scan_steps = 3;         ///< distances tried either side of a hypothesis before refining
   double depth_scan_step = 0.03;    ///< relative distance step of that scan

@@ -1,6 +1,7 @@
 // v4r - robust model-based object tracking. MIT licence.
 #pragma once
 
+#include <span>
 #include <vector>
 
 #include "v4r/detection/detector_params.hpp"
@@ -42,6 +43,8 @@ class EdgeAligner {
   Verification verify(const GradientPyramid& g, const geometry::SE3& T_cam_obj);
 
  private:
+  /// The first detect.verify.refine_samples of the sample buffer.
+  std::span<EdgeSample> refine_buffer();
   /// Share of edge samples with an aligned gradient within `range` px (no runs, loose angle).
   double loose_share(const GradientPyramid& g, const geometry::SE3& T, double range);
   /// Signed offset (px) along `n` of the best gradient within `range` px of `px`, or NaN.

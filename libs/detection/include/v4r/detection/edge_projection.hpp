@@ -62,7 +62,11 @@ class EdgeProjector {
     int cylinder = -1;     // cylinder the piece lies on (limbs: not occluded by it)
   };
   void prepare(const geometry::SE3& T, const geometry::PinholeCamera& cam);
-  [[nodiscard]] bool hidden(const Eigen::Vector3d& p_cam, model::Index fa, model::Index fb, int own_cylinder) const;
+  /// The front faces that may hide part of a piece whose points project (normalised image
+  /// coordinates) into [lo, hi]: their boxes overlap it, and they are not the piece's own faces.
+  void collect_occluders(const Eigen::Vector2d& lo, const Eigen::Vector2d& hi, model::Index fa, model::Index fb);
+  /// A point is hidden by one of the collected faces or by a cylinder other than its own.
+  [[nodiscard]] bool hidden(const Eigen::Vector3d& p_cam, int own_cylinder) const;
   [[nodiscard]] Eigen::Vector3d piece_point(const Piece& pc, double s) const;
 
   const model::Model& model_;
@@ -72,6 +76,8 @@ class EdgeProjector {
   std::vector<Eigen::Vector2d> poly_;
   std::vector<Piece> pieces_;
   std::vector<double> piece_len_;
+  std::vector<Eigen::Vector2d> piece_lo_, piece_hi_;  // normalised image box of each piece
+  std::vector<std::uint32_t> occluders_;               // faces collected for the current piece
 };
 
 }  // namespace v4r::detection
