@@ -2,6 +2,7 @@
 #include "v4r/detection/detector.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 #include "v4r/core/clock.hpp"
@@ -34,6 +35,9 @@ Detector::Detector(std::shared_ptr<const model::Model> model, std::shared_ptr<co
 }
 
 namespace {
+// detect.search.fine_window is at most 8 (its registered range): at most 18 x 18 anchors.
+constexpr int kMaxFineWindow = 8;
+constexpr std::size_t kMaxFineAnchors = (2 * kMaxFineWindow + 2) * (2 * kMaxFineWindow + 2);
 GradientThreshold search_threshold(const SearchParams& s) { return {s.min_gradient, s.min_gradient_floor, s.noise_factor}; }
 }  // namespace
 
@@ -173,26 +177,35 @@ PixelBox Detector::colour_roi() const {
 int Detector::score_fine(std::uint32_t view, int cx, int cy, int& bx, int& by) const {
   const TemplateSet& ts = *templates_;
   const OrientationLevel& L = pyramid_.fine();
-  const int w = L.width, h = L.height, r = p_.search.fine_window;
+  const int w = L.width, h = L.height, r = std::clamp(p_.search.fine_window, 0, kMaxFineWindow);
   const Template& t = ts.fine.templates[view];
   if (t.count < 8) return -1;
-  int best = -1;
-  for (int y = cy - r; y <= cy + 1 + r; ++y) {
-    if (y + t.y0 < 0 || y + t.y1 >= h) continue;
-    for (int x = cx - r; x <= cx + 1 + r; ++x) {
-      if (x + t.x0 < 0 || x + t.x1 >= w) continue;
-      int s = 0;
-      for (std::uint32_t f = t.first; f < t.first + t.count; ++f) {
-        const Feature& ft = ts.fine.features[f];
-        s += L.response[ft.orientation][static_cast<std::size_t>(y + ft.y) * w + (x + ft.x)];
-      }
-      if (s > best) {
-        best = s;
-        bx = x;
-        by = y;
-      }
+  // The anchors of the window whose features all lie inside the image.
+  const int ylo = std::max(cy - r, -static_cast<int>(t.y0)), yhi = std::min(cy + 1 + r, h - 1 - t.y1);
+  const int xlo = std::max(cx - r, -static_cast<int>(t.x0)), xhi = std::min(cx + 1 + r, w - 1 - t.x1);
+  if (ylo > yhi || xlo > xhi) return -1;
+  const int nx = xhi - xlo + 1, ny = yhi - ylo + 1;
+  // Feature by feature over the whole window (rows of adjacent response bytes), then the best
+  // anchor in row order (the first of equal sums).
+  std::array<int, kMaxFineAnchors> acc;
+  std::fill_n(acc.begin(), nx * ny, 0);
+  for (std::uint32_t f = t.first; f < t.first + t.count; ++f) {
+    const Feature& ft = ts.fine.features[f];
+    const std::uint8_t* base = L.response[ft.orientation].data() + static_cast<std::size_t>(ylo + ft.y) * w + (xlo + ft.x);
+    for (int iy = 0; iy < ny; ++iy) {
+      const std::uint8_t* row = base + static_cast<std::size_t>(iy) * w;
+      int* a = acc.data() + iy * nx;
+      for (int ix = 0; ix < nx; ++ix) a[ix] += row[ix];
     }
   }
+  int best = -1;
+  for (int iy = 0; iy < ny; ++iy)
+    for (int ix = 0; ix < nx; ++ix)
+      if (acc[static_cast<std::size_t>(iy * nx + ix)] > best) {
+        best = acc[static_cast<std::size_t>(iy * nx + ix)];
+        bx = xlo + ix;
+        by = ylo + iy;
+      }
   return best < 0 ? -1 : static_cast<int>(1000.0 * best / (4.0 * t.count));
 }
 

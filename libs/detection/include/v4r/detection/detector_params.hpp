@@ -47,7 +47,7 @@ struct SearchParams {
   int fine_spread = 2;            ///< px at 1/2 resolution
   double coarse_min_score = 0.5;  ///< share of the best possible coarse score a candidate needs
   int coarse_candidates = 300;    ///< coarse candidates probed at the fine level (their own view)
-  int fine_expand = 64;           ///< best probed candidates whose neighbouring views are searched
+  int fine_expand = 256;          ///< best probed candidates whose neighbouring views are searched
   int fine_window = 2;            ///< px at 1/2 resolution searched around a coarse candidate
   int max_hypotheses = 16;        ///< hypotheses refined and verified per frame
 };
