@@ -161,9 +161,9 @@ std::size_t EdgeProjector::sample(const geometry::SE3& T, const geometry::Pinhol
                                   std::span<EdgeSample> out, double margin_px) {
   if (out.empty()) return 0;
   prepare(T, cam);
-  // Projected length of every piece (polyline of 16 segments), to share the samples out.
-  // and its box in normalised image coordinates (points in front of the camera; an arc's
-  // polyline box grown by the largest gap between its chord and the arc).
+  // Projected length of every piece (polyline of 16 segments), to share the samples out, and its
+  // box in normalised image coordinates, for the hidden-line test (points in front of the camera;
+  // an arc's polyline box grown by the largest gap between its chords and the arc).
   piece_len_.clear();
   piece_lo_.clear();
   piece_hi_.clear();
