@@ -247,7 +247,9 @@ SearchStep search_step(const ObjectSearchParams& p, scene::Scene& scene, std::si
                        geometry::SE3& T_cam_last) {
   scene::Object& o = scene.objects()[object];
   if (o.status == scene::TrackStatus::kLost) {
-    if (++lost_streak < p.lost_frames || !p.enabled) return SearchStep::kWaiting;
+    // Frames lost only by the status's hysteresis do not count: the tracker still measures.
+    lost_streak = o.lost_by_image ? lost_streak + 1 : 0;
+    if (lost_streak < p.lost_frames || !p.enabled) return SearchStep::kWaiting;
     // The last pose the image supported (reported tracking), else the prediction held while
     // lost (camera frame).
     T_cam_last = scene.cameras()[0].T_ref_cam.inverse() * (o.tracked_once ? o.T_ref_obj_tracked : o.T_ref_obj);

@@ -32,6 +32,7 @@ ObjectMeasurement combine_solves(std::span<const ObjectSolve> solves) {
 
 void update_object(scene::Object& obj, const ObjectMeasurement& m, const CycleParams& p, ObjectReport& rep,
                    double stamp_s) {
+  const bool was_lost = obj.status == scene::TrackStatus::kLost;
   obj.last_stamp = stamp_s;  // (the filter's time update for this frame was done in process())
   // Status from the image: the share of the projected model's edge samples that the image
   // confirms, at the views' measured poses.
@@ -97,7 +98,10 @@ void update_object(scene::Object& obj, const ObjectMeasurement& m, const CyclePa
     obj.measured = scene::TrackStatus::kLost;
   }
   // The reported status: what the image shows at the pose.
-  if (!accept || evidence < p.status.lost_evidence) {
+  // Lost by this frame alone (the search starts after search.lost_frames of these); once lost,
+  // the status stays lost until the image confirms status.return_evidence again.
+  obj.lost_by_image = !accept || evidence < p.status.lost_evidence;
+  if (obj.lost_by_image || (was_lost && evidence < p.status.return_evidence)) {
     obj.status = scene::TrackStatus::kLost;
   } else if (evidence >= p.status.tracking_evidence && obj.measured == scene::TrackStatus::kTracking && !jumped) {
     obj.status = scene::TrackStatus::kTracking;

@@ -109,6 +109,7 @@ ParamRegistry make_registry(CycleParams& p) {
   r.add("status.tracking_evidence", &st.tracking_evidence, 0.0, 1.0, "",
         "share of the projected model's edge samples confirmed by the image for status tracking");
   r.add("status.lost_evidence", &st.lost_evidence, 0.0, 1.0, "", "below this share: status lost");
+  r.add("status.return_evidence", &st.return_evidence, 0.0, 1.0, "", "a lost object stays lost until this share is confirmed again");
   r.add("status.sample_step", &st.evidence.step_px, 1.0, 100.0, "px", "spacing of the evidence samples along projected edges");
   r.add("status.max_samples_per_edge", &st.evidence.max_samples_per_edge, 1, 1000, "", "evidence samples per edge at most");
   r.add("status.search", &st.evidence.search_px, 0, 8, "px", "an evidence sample looks for its edge this far across");

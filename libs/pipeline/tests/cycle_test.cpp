@@ -311,6 +311,7 @@ TEST(ObjectSearch, ARecoveryStartsAtTheLastTrackedPoseNotAtTheDriftedPrediction)
   o.status = scene::TrackStatus::kLost;
   pipeline::ObjectSearchParams sp;
   sp.lost_frames = 1;
+  ASSERT_TRUE(o.lost_by_image);
   int streak = 0;
   geometry::SE3 T_cam_last;
   ASSERT_EQ(pipeline::search_step(sp, scene, 0, streak, T_cam_last), pipeline::SearchStep::kStarted);
@@ -320,10 +321,36 @@ TEST(ObjectSearch, ARecoveryStartsAtTheLastTrackedPoseNotAtTheDriftedPrediction)
   scene.set_pose(0, o.T_ref_obj);
   EXPECT_FALSE(o.tracked_once);
   o.status = scene::TrackStatus::kLost;
+  o.lost_by_image = true;
   streak = 0;
   ASSERT_EQ(pipeline::search_step(sp, scene, 0, streak, T_cam_last), pipeline::SearchStep::kStarted);
   EXPECT_LT((T_cam_last.translation() - (scene.cameras()[0].T_ref_cam.inverse() * o.T_ref_obj).translation()).norm(),
             1e-9);
+}
+
+TEST(ObjectSearch, OnlyFramesLostByTheImageItselfCountTowardsTheSearch) {
+  // A frame reported `lost` only because a lost object has not yet confirmed enough of itself
+  // (status.return_evidence) is one the tracker still measures near the held pose: it does not
+  // count towards search.lost_frames, and it ends a streak.
+  const Sequence s = make(&synth::box_cao, 0.55, 1);
+  pipeline::SingleObjectTracker tracker(s.model, synth::default_camera());
+  tracker.set_pose(s.truth[0]);
+  scene::Scene& scene = tracker.scene();
+  scene::Object& o = scene.objects()[0];
+  pipeline::ObjectSearchParams sp;
+  sp.lost_frames = 2;
+  int streak = 0;
+  geometry::SE3 T_cam_last;
+  o.status = scene::TrackStatus::kLost;
+  o.lost_by_image = true;
+  EXPECT_EQ(pipeline::search_step(sp, scene, 0, streak, T_cam_last), pipeline::SearchStep::kWaiting);
+  o.lost_by_image = false;
+  EXPECT_EQ(pipeline::search_step(sp, scene, 0, streak, T_cam_last), pipeline::SearchStep::kWaiting);
+  EXPECT_EQ(streak, 0);
+  o.lost_by_image = true;
+  EXPECT_EQ(pipeline::search_step(sp, scene, 0, streak, T_cam_last), pipeline::SearchStep::kWaiting);
+  EXPECT_EQ(pipeline::search_step(sp, scene, 0, streak, T_cam_last), pipeline::SearchStep::kStarted);
+  EXPECT_EQ(o.status, scene::TrackStatus::kSearching);
 }
 
 TEST(ObjectSearch, APartlyOccludedObjectIsFoundAgainAroundItsLastPose) {

@@ -52,6 +52,7 @@ void Scene::set_pose(std::size_t object, const geometry::SE3& T_ref_obj) {
   o.velocity.setZero();
   o.status = TrackStatus::kTracking;
   o.measured = TrackStatus::kTracking;
+  o.lost_by_image = false;
   o.bad_frames = 0;
   o.confirmed = false;
   o.tracked_once = false;
@@ -98,6 +99,7 @@ void Scene::start_search(std::size_t object) {
   Object& o = objects_.at(object);
   o.status = TrackStatus::kSearching;
   o.measured = TrackStatus::kLost;
+  o.lost_by_image = false;
   o.quality = 0.0;
   o.evidence = 0.0;
   o.confirmed = false;

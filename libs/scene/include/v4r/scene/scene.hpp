@@ -121,6 +121,9 @@ struct Object {
   /// drives the search width, the prediction and the prior; `status` is what is reported.
   TrackStatus measured = TrackStatus::kUninitialised;
   int bad_frames = 0;                 ///< consecutive frames whose measurement was weak or not used
+  /// This frame's image and features by themselves say `lost` (the measurement was not used or
+  /// the evidence is below status.lost_evidence); `status` stays lost longer (hysteresis).
+  bool lost_by_image = false;
   /// The pose has been measured from the image alone (a `tracking` frame) since it was last set:
   /// only then is the prediction good enough to serve as a prior (a start pose may be far off).
   bool confirmed = false;
