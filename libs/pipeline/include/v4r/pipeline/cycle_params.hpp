@@ -48,7 +48,7 @@ struct StatusParams {
   double lost_evidence = 0.2;      ///< below this share: `lost`
   /// An object reported `lost` stays `lost` until this share is confirmed again (hysteresis: a
   /// measurement of the held pose that finds a little of the model is not a return).
-  double return_evidence = 0.5;
+  double return_evidence = 0.4;
 };
 
 /// \brief Every parameter of the vision cycle, with defaults in code (units in the docs).
