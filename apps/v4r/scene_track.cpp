@@ -203,7 +203,7 @@ Expected<SceneTrackSummary> run_scene_track(const SceneTrackOptions& opt) {
         if (!searchable[o] && rep.objects[o].status == scene::TrackStatus::kLost)
           if (auto e = make_searchable(o); !e) return e.error();
       if (search) {
-        const auto found = search->update(sc, images, stamp);
+        const auto found = search->update(sc, images, rep.stamp_s);  // (the cycle's stamp: a missing one filled in)
         for (std::size_t o = 0; o < found.size(); ++o) {
           cycle_ms += found[o].search_ms;
           const scene::Object& obj = sc.objects()[o];

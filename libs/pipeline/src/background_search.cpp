@@ -39,7 +39,7 @@ void BackgroundSearch::set_search(std::unique_ptr<ObjectSearch> search, std::siz
   was_searching_.assign(objects, 0);
   session_.assign(objects, 0);
   have_last_.assign(objects, 0);
-  T_last_.assign(objects, geometry::SE3());
+  last_.assign(objects, LastSeen{});
   std::unique_ptr<ObjectSearch> replaced;
   {
     std::scoped_lock lock(mutex_);
@@ -91,14 +91,14 @@ void BackgroundSearch::update(scene::Scene& scene, std::span<const CameraImage> 
   bool any = false;
   for (std::size_t i = 0; i < n; ++i) {
     if (!active_[i]) continue;
-    geometry::SE3 T;
-    const SearchStep step = search_step(p_, scene, i, lost_streak_[i], T);
+    LastSeen last;
+    const SearchStep step = search_step(p_, scene, i, lost_streak_[i], last);
     const bool searching = objs[i].status == scene::TrackStatus::kSearching;
     if (searching && !was_searching_[i]) {
       // A new search: after a loss from the pose it was lost at, else (added without a pose) from none.
       session_[i] = ++next_session_;
       have_last_[i] = step == SearchStep::kStarted ? 1 : 0;
-      if (have_last_[i]) T_last_[i] = T;
+      if (have_last_[i]) last_[i] = last;
     }
     was_searching_[i] = searching ? 1 : 0;
     any = any || searching;
@@ -120,7 +120,7 @@ void BackgroundSearch::update(scene::Scene& scene, std::span<const CameraImage> 
     o.searching = i < n && active_[i] && was_searching_[i];
     o.session = i < session_.size() ? session_[i] : 0;
     o.have_last = i < have_last_.size() && have_last_[i];
-    if (o.have_last) o.T_cam_last = T_last_[i];
+    if (o.have_last) o.last = last_[i];
   }
   {
     std::scoped_lock lock(mutex_);
@@ -180,7 +180,7 @@ void BackgroundSearch::search_frame(std::stop_token st) {
     }
     if (seen_session_[i] != o.session) {  // a search begun since the worker's last frame
       seen_session_[i] = o.session;
-      search_->begin_search(i, o.have_last ? &o.T_cam_last : nullptr);
+      search_->begin_search(i, o.have_last ? &o.last : nullptr);
     }
     geometry::SE3 T;
     const SearchReport rep = search_->search_frame(i, img, f.stamp_s, T, st);

@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "v4r/detection/symmetry.hpp"
+#include "v4r/geometry/se3_jacobians.hpp"
 
 namespace v4r::pipeline {
 
@@ -28,7 +29,10 @@ void add_search_params(ParamRegistry& r, ObjectSearchParams& p) {
   r.add("search.lost_frames", &p.lost_frames, 1, 100000, "frames", "frames reported lost in a row before the object is searched again");
   r.add("search.local_frames", &p.local_frames, 0, 100000, "frames",
         "search frames on which perturbed restarts around the last pose are tried");
-  r.add("search.restarts", &p.restarts, 0, 64, "", "perturbed restarts around the last pose per search frame");
+  r.add("search.restarts", &p.restarts, 0, 64, "",
+        "perturbed restarts around the last pose (and around the extrapolated one) per search frame");
+  r.add("search.extrapolate_s", &p.extrapolate_s, 0.0, 100.0, "s",
+        "restarts also where the velocity at the last tracked frame takes the object, extrapolated at most this long (0: off)");
   r.add("search.restart_shift", &p.restart_shift, 0.0, 10.0, "radius",
         "restart offsets across the view, in model bounding radii");
   r.add("search.hypotheses", &p.hypotheses, 1, 64, "", "best detector hypotheses refined by the tracker per search frame");
@@ -136,11 +140,16 @@ double ObjectSearch::refine(std::size_t object, const CameraImage& img, double s
 
 bool ObjectSearch::searchable(std::size_t object) const { return object < slots_.size() && slots_[object].active; }
 
-void ObjectSearch::begin_search(std::size_t object, const geometry::SE3* T_cam_last) {
+void ObjectSearch::begin_search(std::size_t object, const LastSeen* last) {
   if (!searchable(object)) return;
   Slot& s = slots_[object];
-  s.have_last = T_cam_last != nullptr;
-  if (T_cam_last) s.T_last = *T_cam_last;
+  s.have_last = last != nullptr;
+  s.stamp_last = -1.0;
+  if (last) {
+    s.T_last = last->T_cam_obj;
+    s.v_last = last->velocity;
+    s.stamp_last = last->stamp_s;
+  }
   s.have_candidate = false;
   s.search_frames = 0;
 }
@@ -194,6 +203,7 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
       s.have_candidate = false;
       s.have_last = true;
       s.T_last = T_cam_found;
+      s.stamp_last = -1.0;
       s.search_frames = 0;
       rep.found = rep.locked = true;
       rep.best_evidence = best_evidence;
@@ -216,9 +226,14 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
     const Eigen::Vector3d shifts[] = {{0, 0, 0}, {d, 0, 0}, {-d, 0, 0}, {0, d, 0}, {0, -d, 0}, {d, d, 0}, {-d, -d, 0},
                                       {d, -d, 0}, {-d, d, 0}};
     const int n = std::min<int>(p_.restarts + 1, static_cast<int>(std::size(shifts)));
-    for (int k = 0; k < n; ++k)
-      if (consider(geometry::SE3(Eigen::Quaterniond::Identity(), shifts[k]) * s.T_last, true) >= 0.0)
-        local_accepted = true;
+    // Around the last pose, and around where the velocity then takes the object by now.
+    const double dt = s.stamp_last >= 0.0 ? std::min(stamp_s - s.stamp_last, p_.extrapolate_s) : 0.0;
+    const bool moving = dt > 0.0 && (s.v_last * dt).head<3>().norm() > 0.25 * d;
+    const geometry::SE3 centres[] = {s.T_last, moving ? geometry::SE3::exp(s.v_last * dt) * s.T_last : s.T_last};
+    for (int c = 0; c < (moving ? 2 : 1); ++c)
+      for (int k = 0; k < n; ++k)
+        if (consider(geometry::SE3(Eigen::Quaterniond::Identity(), shifts[k]) * centres[c], true) >= 0.0)
+          local_accepted = true;
   }
   // (4) The detector over the whole image.
   if (!tag_accepted && !local_accepted && !stop.stop_requested()) {
@@ -244,7 +259,7 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
 }
 
 SearchStep search_step(const ObjectSearchParams& p, scene::Scene& scene, std::size_t object, int& lost_streak,
-                       geometry::SE3& T_cam_last) {
+                       LastSeen& last) {
   scene::Object& o = scene.objects()[object];
   if (o.status == scene::TrackStatus::kLost) {
     // Frames lost only by the status's hysteresis do not count: the tracker still measures.
@@ -252,7 +267,10 @@ SearchStep search_step(const ObjectSearchParams& p, scene::Scene& scene, std::si
     if (lost_streak < p.lost_frames || !p.enabled) return SearchStep::kWaiting;
     // The last pose the image supported (reported tracking), else the prediction held while
     // lost (camera frame).
-    T_cam_last = scene.cameras()[0].T_ref_cam.inverse() * (o.tracked_once ? o.T_ref_obj_tracked : o.T_ref_obj);
+    const geometry::SE3 T_cam_ref = scene.cameras()[0].T_ref_cam.inverse();
+    last.T_cam_obj = T_cam_ref * (o.tracked_once ? o.T_ref_obj_tracked : o.T_ref_obj);
+    last.velocity = o.tracked_once ? (geometry::adjoint(T_cam_ref) * o.velocity_tracked).eval() : geometry::Vector6d::Zero();
+    last.stamp_s = o.tracked_once ? o.stamp_tracked : -1.0;
     scene.start_search(object);
     return SearchStep::kStarted;
   }
@@ -276,11 +294,12 @@ std::span<const SearchReport> ObjectSearch::update(scene::Scene& scene, std::spa
   for (std::size_t i = 0; i < objs.size() && i < slots_.size(); ++i) {
     Slot& s = slots_[i];
     if (!s.active) continue;
+    LastSeen last;
     geometry::SE3 T;
-    switch (search_step(p_, scene, i, s.lost_streak, T)) {
+    switch (search_step(p_, scene, i, s.lost_streak, last)) {
       case SearchStep::kWaiting: break;
       case SearchStep::kStarted:
-        begin_search(i, &T);
+        begin_search(i, &last);
         reports_[i].started = true;
         break;
       case SearchStep::kIdle: end_search(i); break;

@@ -130,6 +130,10 @@ void update_object(scene::Object& obj, const ObjectMeasurement& m, const CyclePa
     obj.T_ref_obj_filtered = obj.T_ref_obj;
     obj.velocity.setZero();
   }
+  if (obj.status == scene::TrackStatus::kTracking) {  // (T_ref_obj_tracked, above; the velocity now final)
+    obj.velocity_tracked = obj.velocity;
+    obj.stamp_tracked = stamp_s;
+  }
   rep.status = obj.status;
   rep.quality = obj.quality;
 }

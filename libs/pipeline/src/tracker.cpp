@@ -44,7 +44,7 @@ FrameResult SingleObjectTracker::track(const image::ImageView& grey, const image
     r.report = rep.objects[0];
   }
   if (search_ && !scene_.objects().empty()) {
-    r.search = search_->update(scene_, std::span<const CameraImage>(&img, 1), stamp_s)[0];
+    r.search = search_->update(scene_, std::span<const CameraImage>(&img, 1), rep.stamp_s)[0];  // (the cycle's stamp)
     const scene::Object& o = scene_.objects()[0];
     if (r.search.locked) {  // found and confirmed on this frame: the pose of the search
       r.T_cam_obj = r.T_cam_obj_filtered = o.T_ref_obj;

@@ -75,7 +75,7 @@ class BackgroundSearch {
     bool searching = false;
     std::uint64_t session = 0;  // one per search of the object (from its turning `searching`)
     bool have_last = false;
-    geometry::SE3 T_cam_last;  // pose it was lost at, camera 0's frame
+    LastSeen last;  // where it was last seen, camera 0's frame
   };
   struct Found {  // what the worker found for one object
     bool locked = false;
@@ -105,7 +105,7 @@ class BackgroundSearch {
   std::vector<char> was_searching_;
   std::vector<std::uint64_t> session_;
   std::vector<char> have_last_;
-  std::vector<geometry::SE3> T_last_;
+  std::vector<LastSeen> last_;
   Frame staging_;                 // filled outside the lock, then swapped with pending_
   std::vector<Found> taken_;      // the result apply() took
 

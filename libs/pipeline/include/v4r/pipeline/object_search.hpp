@@ -25,8 +25,13 @@ struct ObjectSearchParams {
   /// the restarts cost a fraction of the whole-image detector. (10 frames lost the blurred thin
   /// plates of the benchmark for 50-100 frames, which the detector did not find.)
   int local_frames = 300;
-  int restarts = 4;              ///< perturbed restarts per search frame (around the last pose)
+  int restarts = 4;              ///< perturbed restarts per search frame (around the last pose, and the extrapolated one)
   double restart_shift = 0.5;    ///< restart offsets across the view: this times the model's bounding radius
+  /// The restarts are tried around the last tracked pose and, if the object was moving, around
+  /// where its velocity then takes it by now (the filter's prediction from the last tracked
+  /// frame; a partly hidden object moves on while it is lost), extrapolated for at most this
+  /// long (0: the last pose only).
+  double extrapolate_s = 1.0;
   int hypotheses = 10;           ///< best detector hypotheses refined by the tracker per search frame
   int refine_cycles = 3;         ///< vision cycles run on a hypothesis (first wide windows, then normal)
   /// A refined hypothesis is accepted when the cycle reports `tracking` on it and this share of
@@ -73,6 +78,13 @@ struct SearchReport {
   bool cancelled = false;    ///< a stop request cut the search short (BackgroundSearch shutting down)
 };
 
+/// \brief Where and how an object was last seen (the start of the restarts of a search).
+struct LastSeen {
+  geometry::SE3 T_cam_obj;  ///< camera 0's frame
+  geometry::Vector6d velocity = geometry::Vector6d::Zero();  ///< (v, w) left tangent, camera 0's frame, m/s, rad/s
+  double stamp_s = -1.0;    ///< time of T_cam_obj and velocity (< 0: no velocity known)
+};
+
 /// \brief What the cheap per-frame bookkeeping (search_step) says about one searchable object.
 enum class SearchStep {
   kWaiting,  ///< lost, but not yet for lost_frames frames in a row (or the search is disabled)
@@ -84,9 +96,10 @@ enum class SearchStep {
 /// The bookkeeping of one object on one frame, after VisionCycle::process (cheap: on the
 /// cycle's thread): counts the frames in a row the object was reported `lost` in `lost_streak`;
 /// at p.lost_frames (with p.enabled) the object turns to `searching` (Scene::start_search) and
-/// `T_cam_last` receives the pose it was lost at (camera 0's frame). Allocates nothing.
+/// `last` receives where it was last seen: the last pose reported `tracking` and the velocity
+/// then (else the pose held while lost, velocity unknown). Allocates nothing.
 SearchStep search_step(const ObjectSearchParams& p, scene::Scene& scene, std::size_t object, int& lost_streak,
-                       geometry::SE3& T_cam_last);
+                       LastSeen& last);
 
 /// Sets a pose the search found and confirmed: T_cam_obj (camera 0's frame) becomes the object's
 /// pose (Scene::set_pose), `tracking`, with `evidence` as its evidence and quality.
@@ -135,9 +148,9 @@ class ObjectSearch {
   /// True when `object` was made searchable (add_object).
   [[nodiscard]] bool searchable(std::size_t object) const;
   /// A search of `object` begins: its candidate is dropped; perturbed restarts are tried around
-  /// T_cam_last (the pose it was lost at, camera 0's frame) on the first local_frames search
-  /// frames, none if null.
-  void begin_search(std::size_t object, const geometry::SE3* T_cam_last);
+  /// where it was last seen (and where its velocity then takes it) on the first local_frames
+  /// search frames, none if null.
+  void begin_search(std::size_t object, const LastSeen* last);
   /// `object` is not searched any more (found, or given a pose): its candidate is dropped.
   void end_search(std::size_t object);
   /// Searches `object` (searchable) on one frame: steps (1)-(4) of the class comment. When a
@@ -158,6 +171,8 @@ class ObjectSearch {
     int search_frames = 0;
     bool have_last = false;      // a last pose to restart from (camera frame)
     geometry::SE3 T_last;
+    geometry::Vector6d v_last = geometry::Vector6d::Zero();  // velocity at T_last (camera frame)
+    double stamp_last = -1.0;    // time of T_last and v_last (< 0: no velocity)
     bool have_candidate = false; // accepted on the previous frame, to be confirmed
     geometry::SE3 T_candidate;
     bool candidate_local = false;  // the candidate came from a restart around the last pose

@@ -131,6 +131,10 @@ struct Object {
   /// object is lost or searched: a recovery starts there, not at the prediction held since.
   geometry::SE3 T_ref_obj_tracked;
   bool tracked_once = false;  ///< T_ref_obj_tracked is set
+  /// The filter's velocity at that frame (left tangent, reference frame) and the frame's time:
+  /// a search after a loss also looks where the object has moved on to since.
+  geometry::Vector6d velocity_tracked = geometry::Vector6d::Zero();
+  double stamp_tracked = -1.0;
 };
 
 /// \brief The scene: cameras and objects, owned by value. Adding an object creates one view per
