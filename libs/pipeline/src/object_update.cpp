@@ -109,10 +109,6 @@ void update_object(scene::Object& obj, const ObjectMeasurement& m, const CyclePa
     obj.status = scene::TrackStatus::kDegraded;
   }
   obj.quality = accept ? evidence * residual_factor : 0.0;
-  if (obj.status == scene::TrackStatus::kTracking) {
-    obj.T_ref_obj_tracked = obj.T_ref_obj;
-    obj.tracked_once = true;
-  }
   // A pose the image does not support carries the prediction's covariance (the filter's, this
   // frame's time update), which grows with time while nothing is measured; never the last
   // measurement's. (covariance_pred is zero without a running filter.)
@@ -130,9 +126,11 @@ void update_object(scene::Object& obj, const ObjectMeasurement& m, const CyclePa
     obj.T_ref_obj_filtered = obj.T_ref_obj;
     obj.velocity.setZero();
   }
-  if (obj.status == scene::TrackStatus::kTracking) {  // (T_ref_obj_tracked, above; the velocity now final)
+  if (obj.status == scene::TrackStatus::kTracking) {  // where and how the image last supported it
+    obj.T_ref_obj_tracked = obj.T_ref_obj;
     obj.velocity_tracked = obj.velocity;
     obj.stamp_tracked = stamp_s;
+    obj.tracked_once = true;
   }
   rep.status = obj.status;
   rep.quality = obj.quality;
