@@ -162,10 +162,8 @@ TEST(ObjectSearch, FindsTheObjectWithoutAPoseAndAgainAfterTwentyFramesOutOfView)
   std::printf("[search] recovered %d of %d returns; %d of %d object-free frames said tracking\n", recovered, events,
               empty_tracking, empty_frames);
   EXPECT_EQ(late_start, 0) << "sequences not locked by frame 10 from no pose";
-  // The issue asks for >= 95 % of returns. Since the cycle was split into measurement units and
-  // one solver (issue 11), box seed 1's return at frame 35 locks onto a wrong pose (98 mm, 89
-  // degrees) that the edge evidence accepts: 11 of 12. Open (see the stop note); one miss at most.
-  EXPECT_GE(recovered, events - 1) << "of " << events << " returns";
+  // The issue asks for >= 95 % of returns: all 12.
+  EXPECT_GE(recovered, events) << "of " << events << " returns";
   EXPECT_EQ(empty_tracking, 0) << "of " << empty_frames << " object-free frames";
 }
 

@@ -15,7 +15,8 @@ ObjectMeasurer::ObjectMeasurer(const CycleParams& params, Clock::time_point (*no
       arcs_(params),
       junctions_(params),
       solver_(params),
-      evidence_(params.status.evidence) {}
+      evidence_(params.status.evidence),
+      contrast_(params.status.contrast) {}
 
 void ObjectMeasurer::reserve(const scene::Scene& scene) {
   // Buffers for the largest object seen by every camera: observations of one solve come from all
@@ -249,8 +250,9 @@ void ObjectMeasurer::measure(const scene::Scene& scene, scene::Object& obj, std:
   // Image evidence at the measured pose, per view.
   for (scene::View& view : obj.views) {
     view.evidence_samples = view.evidence_matched = 0;
+    view.leak_samples = view.leak_matched = 0;
     if (view.camera >= images.size() || images[view.camera].grey.empty()) continue;
-    measure_view_evidence(evidence_, view, scene.cameras()[view.camera], images[view.camera]);
+    measure_view_evidence(evidence_, &contrast_, view, scene.cameras()[view.camera], images[view.camera]);
   }
   const auto tf = now_();
   update_object(obj, combine_solves(solves_), p_, rep, stamp_s);

@@ -112,6 +112,14 @@ bool ObjectSearch::in_view_range(const Slot& s, const geometry::SE3& T) const {
   return false;
 }
 
+bool ObjectSearch::over_last_place(const Slot& s, const geometry::SE3& T) {
+  const Eigen::Vector3d c_last = s.T_leak * s.centre;
+  const Eigen::Vector3d c = T * s.centre;
+  const double d = c_last.norm();
+  if (d <= s.radius || c.norm() <= 1e-9) return true;  // (the camera inside the bounding sphere)
+  return c.normalized().dot(c_last / d) >= std::sqrt(1.0 - (s.radius / d) * (s.radius / d));
+}
+
 double ObjectSearch::refine(std::size_t object, const CameraImage& img, double stamp_s, geometry::SE3& T,
                             double accept_evidence) {
   if (T.translation().z() <= 1e-3) return -1.0;
@@ -121,8 +129,16 @@ double ObjectSearch::refine(std::size_t object, const CameraImage& img, double s
     probe_.process(probe_scene_, std::span<const CameraImage>(&img, 1), stamp_s);
     if (o.status == scene::TrackStatus::kUninitialised) break;  // (a fault in the probe: give up on it)
   }
-  const bool ok = o.status == scene::TrackStatus::kTracking && o.evidence >= accept_evidence &&
-                  in_view_range(slots_[object], o.T_ref_obj);
+  const Slot& slot = slots_[object];
+  // Its outline must not leak the object's own colours much more than while the object was
+  // tracked (the outline on texture: a pose nested in the real one). The typical leak belongs to
+  // the faces and background seen then: it is used where the object is found over the place it
+  // was last tracked (centres' rays within its bounding radius), as after an occlusion.
+  const StatusParams& sp = probe_.params().status;
+  const bool leaks = slot.leak_typical >= 0.0 && slot.leak_typical <= sp.leak_max_typical && o.leak_samples >= sp.leak_min_samples && sp.leak_margin < 1.0 &&
+                     o.leak > slot.leak_typical + sp.leak_margin && over_last_place(slot, o.T_ref_obj);
+  const bool ok = o.status == scene::TrackStatus::kTracking && o.evidence >= accept_evidence && !leaks &&
+                  in_view_range(slot, o.T_ref_obj);
   // Rank: edge samples confirmed, times the square of their share, weighed down by the pose
   // solve's RMS residual as the cycle's quality is (1 / (1 + (rms / 1.5 px)^2)). An edge image
   // can be fitted by more than one pose of a box (a Necker-like reversal: turned and farther, its
@@ -145,6 +161,8 @@ void ObjectSearch::begin_search(std::size_t object, const LastSeen* last) {
   Slot& s = slots_[object];
   s.have_last = last != nullptr;
   s.stamp_last = -1.0;
+  s.leak_typical = last ? last->leak_typical : -1.0;
+  if (last) s.T_leak = last->T_cam_obj;
   if (last) {
     s.T_last = last->T_cam_obj;
     s.v_last = last->velocity;
@@ -271,6 +289,7 @@ SearchStep search_step(const ObjectSearchParams& p, scene::Scene& scene, std::si
     last.T_cam_obj = T_cam_ref * (o.tracked_once ? o.T_ref_obj_tracked : o.T_ref_obj);
     last.velocity = o.tracked_once ? (geometry::adjoint(T_cam_ref) * o.velocity_tracked).eval() : geometry::Vector6d::Zero();
     last.stamp_s = o.tracked_once ? o.stamp_tracked : -1.0;
+    last.leak_typical = o.leak_typical;
     scene.start_search(object);
     return SearchStep::kStarted;
   }

@@ -45,6 +45,13 @@ void update_object(scene::Object& obj, const ObjectMeasurement& m, const CyclePa
   rep.evidence = evidence;
   rep.evidence_samples = ev_samples;
   obj.evidence = evidence;
+  int leak_samples = 0, leak_matched = 0;
+  for (const scene::View& view : obj.views) {
+    leak_samples += view.leak_samples;
+    leak_matched += view.leak_matched;
+  }
+  obj.leak = leak_samples > 0 ? static_cast<double>(leak_matched) / leak_samples : -1.0;
+  obj.leak_samples = leak_samples;
   // Whether the measurement is used follows the features: the share of visible features used,
   // lowered by large residuals.
   double ratio = rep.features_visible > 0 ? static_cast<double>(rep.lines_used + rep.junctions_used / 2 +
@@ -131,6 +138,8 @@ void update_object(scene::Object& obj, const ObjectMeasurement& m, const CyclePa
     obj.velocity_tracked = obj.velocity;
     obj.stamp_tracked = stamp_s;
     obj.tracked_once = true;
+    if (obj.leak >= 0.0 && evidence >= p.status.leak_learn_evidence)
+      obj.leak_typical = obj.leak_typical < 0.0 ? obj.leak : obj.leak_typical + p.status.leak_rate * (obj.leak - obj.leak_typical);
   }
   rep.status = obj.status;
   rep.quality = obj.quality;

@@ -110,6 +110,17 @@ ParamRegistry make_registry(CycleParams& p) {
         "share of the projected model's edge samples confirmed by the image for status tracking");
   r.add("status.lost_evidence", &st.lost_evidence, 0.0, 1.0, "", "below this share: status lost");
   r.add("status.return_evidence", &st.return_evidence, 0.0, 1.0, "", "a lost object stays lost until this share is confirmed again");
+  r.add("status.leak_rate", &st.leak_rate, 0.0, 1.0, "",
+        "weight of a tracking frame in the running mean of the silhouette leak (the search's reference)");
+  r.add("status.leak_learn_evidence", &st.leak_learn_evidence, 0.0, 1.0, "",
+        "the running mean of the silhouette leak learns from tracking frames with this evidence at least");
+  r.add("status.leak_margin", &st.leak_margin, 0.0, 1.0, "",
+        "the search refuses a pose whose outline leaks the object's colours more than while tracked, by this share (1: off)");
+  r.add("status.leak_max_typical", &st.leak_max_typical, 0.0, 1.0, "",
+        "the leak test is used for objects whose outline leaks at most this share while tracked");
+  r.add("status.leak_min_samples", &st.leak_min_samples, 1, 100000, "", "colour samples the leak test needs");
+  r.add("status.contrast_match_share", &st.contrast.match_share, 0.0, 1.0, "",
+        "an outside colour sample leaks when this share of the inside samples is alike");
   r.add("status.sample_step", &st.evidence.step_px, 1.0, 100.0, "px", "spacing of the evidence samples along projected edges");
   r.add("status.max_samples_per_edge", &st.evidence.max_samples_per_edge, 1, 1000, "", "evidence samples per edge at most");
   r.add("status.search", &st.evidence.search_px, 0, 8, "px", "an evidence sample looks for its edge this far across");

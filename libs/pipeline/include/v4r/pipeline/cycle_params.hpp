@@ -3,6 +3,7 @@
 
 #include "v4r/estimation/pose_solver.hpp"
 #include "v4r/features/edge_evidence.hpp"
+#include "v4r/features/silhouette_contrast.hpp"
 #include "v4r/features/ellipse_tracker.hpp"
 #include "v4r/features/line_tracker.hpp"
 #include "v4r/filter/pose_filter.hpp"
@@ -49,6 +50,19 @@ struct StatusParams {
   /// An object reported `lost` stays `lost` until this share is confirmed again (hysteresis: a
   /// measurement of the held pose that finds a little of the model is not a return).
   double return_evidence = 0.4;
+  features::SilhouetteContrastParams contrast;
+  /// Weight of a frame in the running mean of the silhouette leak over frames reported
+  /// `tracking` with at least leak_learn_evidence (scene::Object::leak_typical).
+  double leak_rate = 0.1;
+  double leak_learn_evidence = 0.7;
+  /// The search refuses a pose whose silhouette leaks more than leak_typical by this share (from
+  /// at least leak_min_samples colour samples): its outline lies on the object itself (a pose
+  /// nested in the real one, its edges on texture) or on the wrong side of the object.
+  double leak_margin = 0.25;
+  int leak_min_samples = 12;
+  /// ... and only for an object that stands out from its surroundings: leak_typical at most this
+  /// (an object whose outline leaks much while tracked looks like its background; no cue).
+  double leak_max_typical = 0.25;
 };
 
 /// \brief Every parameter of the vision cycle, with defaults in code (units in the docs).

@@ -9,6 +9,7 @@
 #include "v4r/core/clock.hpp"
 #include "v4r/core/thread_team.hpp"
 #include "v4r/features/edge_evidence.hpp"
+#include "v4r/features/silhouette_contrast.hpp"
 #include "v4r/pipeline/arc_measurement.hpp"
 #include "v4r/pipeline/camera_image.hpp"
 #include "v4r/pipeline/cycle_params.hpp"
@@ -81,6 +82,7 @@ class ObjectMeasurer {
   JunctionMeasurement junctions_;
   ObjectSolver solver_;
   features::EdgeEvidence evidence_;
+  features::SilhouetteContrast contrast_;
   MeasureContext ctx_;
   ObservationBuffer buffer_;
   std::vector<ObjectSolve> solves_;  // per solve of the object being measured

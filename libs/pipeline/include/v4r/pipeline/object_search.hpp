@@ -83,6 +83,7 @@ struct LastSeen {
   geometry::SE3 T_cam_obj;  ///< camera 0's frame
   geometry::Vector6d velocity = geometry::Vector6d::Zero();  ///< (v, w) left tangent, camera 0's frame, m/s, rad/s
   double stamp_s = -1.0;    ///< time of T_cam_obj and velocity (< 0: no velocity known)
+  double leak_typical = -1.0;  ///< the object's silhouette leak while tracked (scene::Object::leak_typical; < 0: unknown)
 };
 
 /// \brief What the cheap per-frame bookkeeping (search_step) says about one searchable object.
@@ -173,6 +174,8 @@ class ObjectSearch {
     geometry::SE3 T_last;
     geometry::Vector6d v_last = geometry::Vector6d::Zero();  // velocity at T_last (camera frame)
     double stamp_last = -1.0;    // time of T_last and v_last (< 0: no velocity)
+    double leak_typical = -1.0;  // silhouette leak while tracked (< 0: unknown)
+    geometry::SE3 T_leak;        // the last tracked pose, where leak_typical holds
     bool have_candidate = false; // accepted on the previous frame, to be confirmed
     geometry::SE3 T_candidate;
     bool candidate_local = false;  // the candidate came from a restart around the last pose
@@ -184,6 +187,9 @@ class ObjectSearch {
   };
   /// T_cam_obj (or one of its symmetric equivalents) within the slot's view range and margin.
   [[nodiscard]] bool in_view_range(const Slot& s, const geometry::SE3& T) const;
+  /// T_cam_obj puts the object's centre within its bounding radius (as seen from the camera) of
+  /// where it was last tracked (T_leak).
+  [[nodiscard]] static bool over_last_place(const Slot& s, const geometry::SE3& T);
   /// Refines T (camera frame) with the private cycle; returns its rank (edge samples the image
   /// confirms) if accepted, else -1; its edge evidence (share) in last_evidence_.
   double refine(std::size_t object, const CameraImage& img, double stamp_s, geometry::SE3& T, double accept_evidence);

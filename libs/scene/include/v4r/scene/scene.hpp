@@ -87,6 +87,9 @@ struct View {
   /// Edge evidence at the view's pose after the last cycle: samples along the projected model
   /// edges and how many of them the image confirms (features::EdgeEvidence).
   int evidence_samples = 0, evidence_matched = 0;
+  /// Silhouette contrast at the same pose: colour samples just outside the silhouette edges, and
+  /// how many of them look like the object's inside (features::SilhouetteContrast).
+  int leak_samples = 0, leak_matched = 0;
 };
 
 /// Tracking state of an object. kSearching: not found yet, or lost for long and searched again
@@ -110,6 +113,12 @@ struct Object {
   TrackStatus status = TrackStatus::kUninitialised;
   double quality = 0.0;  ///< 0..1: edge evidence, lowered by large residuals
   double evidence = 0.0;  ///< share of the projected model's edge samples the image confirms (all views)
+  /// Share of the colour samples just outside the silhouette that look like the object's inside
+  /// (all views; -1: no silhouette sampled), and its running mean over frames reported
+  /// `tracking` (-1: none yet): what this object against its surroundings leaks at a right pose.
+  double leak = -1.0;
+  int leak_samples = 0;
+  double leak_typical = -1.0;
   filter::PoseFilter filter;          ///< predicts T_ref_obj for tracking (constant velocity)
   filter::PoseFilter smoother;        ///< the same measurements with adaptive process noise: the reported pose
   geometry::SE3 T_ref_obj_filtered;   ///< filter output after the last cycle
