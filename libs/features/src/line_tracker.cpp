@@ -22,9 +22,8 @@ constexpr double kInsideMargin = 0.01;     // pixels: keeps x0 + 1, y0 + 1 of a 
 constexpr float kMinChromaSum = 30.0f;     // grey levels: mean R + G + B below which rg chromaticity is noise
 constexpr float kMaxDarkScale = 4.0f;      // largest widening of the chroma tolerance on a darkened band
 
-/// Median of |gradient| over a window, from a histogram of 0.5 grey/px bins (the last bin holds
-/// everything above): the noise and texture level of the window, which the few columns of an
-/// edge (however strong or blurred) do not move.
+/// Median of |value| over a window, from a histogram of 0.5 grey/px bins (the last bin holds
+/// everything above).
 class GradientHistogram {
  public:
   void add(float g) {
@@ -48,9 +47,43 @@ class GradientHistogram {
   long count_ = 0;
 };
 
-/// Gradient threshold of a window (see LineTrackerParams::min_gradient).
-float threshold(const LineTrackerParams& p, const GradientHistogram& hist) {
-  return std::max(p.min_gradient, p.gradient_noise_factor * hist.median());
+/// Gradient threshold of a window of rows x cols gradients (see LineTrackerParams::min_gradient
+/// and profile_noise_factor). Two estimates of the window's noise and texture level: the median
+/// |gradient|, and profile_noise_factor times the median deviation of the gradient from its
+/// column's mean over the rows (the across-profile the rows share: an edge, sharp or blurred over
+/// most of the window, which the first estimate would count as noise). The smaller is used.
+/// `profile` holds cols floats (scratch).
+float window_threshold(const LineTrackerParams& p, const float* grad, const unsigned char* row_valid,
+                       const unsigned char* inside, int rows, int cols, float* profile) {
+  GradientHistogram level, deviation;
+  for (int j = 0; j < cols; ++j) profile[j] = 0.0f;
+  int n = 0;
+  for (int i = 0; i < rows; ++i) {
+    if (!row_valid[i]) continue;
+    const float* g = grad + static_cast<std::size_t>(i) * cols;
+    const unsigned char* in = inside + static_cast<std::size_t>(i) * cols;
+    for (int j = 1; j < cols - 1; ++j) {
+      if (!in[j - 1] || !in[j + 1]) continue;
+      level.add(g[j]);
+      profile[j] += g[j];
+    }
+    ++n;
+  }
+  float noise = level.median();
+  if (p.profile_noise_factor > 0.0f && n > 1) {
+    // Column means over the valid rows (a column outside the image in some rows: its mean is
+    // lowered towards 0 there, which only raises the deviation, i.e. the estimate stays safe).
+    for (int j = 0; j < cols; ++j) profile[j] /= static_cast<float>(n);
+    for (int i = 0; i < rows; ++i) {
+      if (!row_valid[i]) continue;
+      const float* g = grad + static_cast<std::size_t>(i) * cols;
+      const unsigned char* in = inside + static_cast<std::size_t>(i) * cols;
+      for (int j = 1; j < cols - 1; ++j)
+        if (in[j - 1] && in[j + 1]) deviation.add(g[j] - profile[j]);
+    }
+    noise = std::min(noise, p.profile_noise_factor * deviation.median());
+  }
+  return std::max(p.min_gradient, p.gradient_noise_factor * noise);
 }
 
 bool finite(const Eigen::Vector2d& p) { return std::isfinite(p.x()) && std::isfinite(p.y()); }
@@ -83,6 +116,9 @@ LineTrackerParams sanitize(LineTrackerParams p) {
     p.min_relative_strength = def.min_relative_strength;
   if (!(p.gradient_noise_factor >= 0.0f) || !std::isfinite(p.gradient_noise_factor))
     p.gradient_noise_factor = def.gradient_noise_factor;
+  if (!(p.profile_noise_factor >= 0.0f) || !std::isfinite(p.profile_noise_factor))
+    p.profile_noise_factor = def.profile_noise_factor;
+  p.ramp_min_width = std::max(p.ramp_min_width, 0);
   if (!(p.inlier_tolerance > 0.0)) p.inlier_tolerance = def.inlier_tolerance;
   if (!(p.min_inlier_ratio >= 0.0)) p.min_inlier_ratio = def.min_inlier_ratio;
   if (!(p.max_angle > 0.0)) p.max_angle = def.max_angle;
@@ -356,6 +392,36 @@ int LineTracker::extract_edgels(int want, bool cues, int* rejected) {
       if (want != 0 && sign != want) continue;
       const float left = sign * g[j - 1], right = sign * g[j + 1];
       if (!(sg >= left && sg > right)) continue;
+      // Sub-pixel peak: vertex of the parabola through the three values; on a blurred edge's
+      // plateau (a run of at least ramp_min_width edge pixels of this sign at half the peak or
+      // more, within the search range: a neighbouring edge's half is not ours), where the noise decides
+      // which column peaks, the centroid of the run, kept once (for its strongest column; equal
+      // ones: the leftmost).
+      const float denom = left - 2.0f * sg + right;
+      float delta = denom < -1e-6f ? 0.5f * (left - right) / denom : 0.0f;
+      delta = std::clamp(delta, -0.5f, 0.5f);
+      if (p_.ramp_min_width > 0) {
+        const float half = std::max(0.5f * sg, thr_);
+        int lo = j, hi = j;
+        bool beaten = false;
+        while (lo > col_lo_ && inside[lo - 1] && sign * g[lo - 1] >= half) {
+          --lo;
+          beaten = beaten || sign * g[lo] > sg;
+        }
+        while (hi < col_hi_ && inside[hi + 1] && sign * g[hi + 1] >= half) {
+          ++hi;
+          beaten = beaten || sign * g[hi] >= sg;
+        }
+        if (hi - lo + 1 >= p_.ramp_min_width) {
+          if (beaten) continue;
+          float sum = 0.0f, moment = 0.0f;
+          for (int k = lo; k <= hi; ++k) {
+            sum += sign * g[k];
+            moment += sign * g[k] * static_cast<float>(k - j);
+          }
+          delta = moment / sum;
+        }
+      }
       // Keep the k_max strongest, sorted by decreasing strength.
       int pos;
       if (count < k_max) {
@@ -370,10 +436,6 @@ int LineTracker::extract_edgels(int want, bool cues, int* rejected) {
         continue;
       }
       if (count < k_max) ++count;
-      // Sub-pixel peak: vertex of the parabola through the three values.
-      const float denom = left - 2.0f * sg + right;
-      float delta = denom < -1e-6f ? 0.5f * (left - right) / denom : 0.0f;
-      delta = std::clamp(delta, -0.5f, 0.5f);
       const Edgel e{static_cast<float>(j - w) + delta, static_cast<float>(row_v_[i]), sg, sign, i, j};
       while (pos > 0 && slots[pos - 1].strength < sg) {
         slots[pos] = slots[pos - 1];
@@ -528,7 +590,6 @@ LineMeasurement LineTracker::track(const image::ImageView& img, const Segment2& 
   const Eigen::Vector2d start = predicted.a + margin * d;
   const int want = state.polarity > 0 ? 1 : (state.polarity < 0 ? -1 : 0);
   int valid_rows = 0;
-  GradientHistogram hist;  // |gradient| over the valid rows' inside columns (threshold)
   for (int i = 0; i < rows; ++i) {
     const Eigen::Vector2d c = start + (i * step) * d;
     row_centre_[i] = c;
@@ -601,13 +662,10 @@ LineMeasurement LineTracker::track(const image::ImageView& img, const Segment2& 
     float* g = &grad_[static_cast<std::size_t>(i) * cols];
     g[0] = 0.0f;
     g[cols - 1] = 0.0f;
-    for (int j = 1; j < cols - 1; ++j) {
-      g[j] = 0.5f * (prow[j + 1] - prow[j - 1]);
-      if (inside[j - 1] && inside[j + 1]) hist.add(g[j]);
-    }
+    for (int j = 1; j < cols - 1; ++j) g[j] = 0.5f * (prow[j + 1] - prow[j - 1]);
   }
   if (valid_rows < kMinInliers) return m;
-  thr_ = threshold(p_, hist);
+  thr_ = window_threshold(p_, grad_.data(), row_valid_.data(), col_inside_.data(), rows, cols, colour_row_.data());
 
   // Appearance checks of the learned object sides (paper 4.1).
   bool cues = false;
@@ -733,18 +791,13 @@ bool LineTracker::colour_gradient(const LineTrackState& state, float axis[3]) {
   const Eigen::Vector3f ref(state.colour_axis[0], state.colour_axis[1], state.colour_axis[2]);
   const float s = ref.squaredNorm() > 0.5f ? e.dot(ref) : e.sum();
   if (s < 0.0f) e = -e;
-  GradientHistogram hist;
   for (int i = 0; i < rows; ++i) {
     float* g = &grad_[static_cast<std::size_t>(i) * cols];
     if (!row_valid_[i]) continue;
     const float* cg = &colour_grad_[static_cast<std::size_t>(i) * cols * 3];
-    const unsigned char* inside = &col_inside_[static_cast<std::size_t>(i) * cols];
-    for (int j = 0; j < cols; ++j) {
-      g[j] = e[0] * cg[3 * j] + e[1] * cg[3 * j + 1] + e[2] * cg[3 * j + 2];
-      if (j > 0 && j < cols - 1 && inside[j - 1] && inside[j + 1]) hist.add(g[j]);
-    }
+    for (int j = 0; j < cols; ++j) g[j] = e[0] * cg[3 * j] + e[1] * cg[3 * j + 1] + e[2] * cg[3 * j + 2];
   }
-  thr_ = threshold(p_, hist);
+  thr_ = window_threshold(p_, grad_.data(), row_valid_.data(), col_inside_.data(), rows, cols, colour_row_.data());
   for (int c = 0; c < 3; ++c) axis[c] = e[c];
   return true;
 }

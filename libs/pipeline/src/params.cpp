@@ -12,7 +12,11 @@ ParamRegistry make_registry(CycleParams& p) {
   r.add("track.end_margin", &t.end_margin, 0.0, 0.45, "", "fraction of an edge left out at each end");
   r.add("track.min_gradient", &t.min_gradient, 0.0, 255.0, "grey/px", "absolute floor of an edge pixel's gradient");
   r.add("track.gradient_noise_factor", &t.gradient_noise_factor, 0.0, 20.0, "",
-        "edge pixels exceed this times the window's median |gradient| (threshold follows noise and texture)");
+        "edge pixels exceed this times the window's noise level (threshold follows noise and texture)");
+  r.add("track.profile_noise_factor", &t.profile_noise_factor, 0.0, 20.0, "",
+        "noise level also from the gradient's deviation from the rows' shared profile, times this (a blurred edge is not noise; 0: off)");
+  r.add("track.ramp_min_width", &t.ramp_min_width, 0, 100, "px",
+        "a gradient plateau this wide (a blurred edge) is located at its centroid, once (0: off)");
   r.add("track.min_relative_strength", &t.min_relative_strength, 0.0, 1.0, "",
         "inliers weaker than this fraction of the line's mean strength are left out of the fit");
   r.add("track.use_colour_gradient", &t.use_colour_gradient,

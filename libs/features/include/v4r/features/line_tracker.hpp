@@ -18,11 +18,21 @@ struct LineTrackerParams {
   int half_width = 10;         ///< search range across the edge, pixels each side (sub-image width 2w+1)
   double end_margin = 0.1;     ///< fraction of the segment left out at each end (corners, junctions)
   /// Edge pixels must exceed the larger of two thresholds: this absolute floor (grey levels per
-  /// pixel of the Prewitt gradient) and gradient_noise_factor times the window's median
-  /// |gradient|, which follows the image's noise and the texture of the faces but not the few
-  /// columns of the edges themselves (pure noise of deviation s: median 0.67 s, threshold 2.7 s; two strong edges in the window raise it to about 4 s).
+  /// pixel of the Prewitt gradient) and gradient_noise_factor times the window's noise level,
+  /// which follows the image's noise and the texture of the faces (pure noise of deviation s:
+  /// median |gradient| 0.67 s, threshold 2.7 s; two sharp edges in the window raise it to about
+  /// 4 s). The noise level is the median |gradient|, or, when smaller, profile_noise_factor times
+  /// the median deviation of the gradient from the profile across the window that its rows share:
+  /// an edge blurred over most of the window is such a profile, and its own gradient would
+  /// otherwise count as noise and hide it (0: off).
   float min_gradient = 3.0f;
   float gradient_noise_factor = 4.0f;
+  float profile_noise_factor = 2.0f;
+  /// A gradient peak on a plateau at least this many columns wide (a blurred edge: same sign,
+  /// each column an edge pixel and at least half the peak) is located at the plateau's centroid
+  /// and kept once, not at whichever column the noise raises (0: off). A sharp edge spans about 3
+  /// columns, two sharp edges 2 px apart about 5: those keep their peaks.
+  int ramp_min_width = 6;
   /// Inliers weaker than this fraction of the fitted line's mean edge strength are left out of
   /// the final fit (noise on the line where the edge itself is occluded).
   float min_relative_strength = 0.3f;

@@ -58,7 +58,7 @@ struct StatusParams {
   /// The search refuses a pose whose silhouette leaks more than leak_typical by this share (from
   /// at least leak_min_samples colour samples): its outline lies on the object itself (a pose
   /// nested in the real one, its edges on texture) or on the wrong side of the object.
-  double leak_margin = 0.25;
+  double leak_margin = 0.15;
   int leak_min_samples = 12;
   /// ... and only for an object that stands out from its surroundings: leak_typical at most this
   /// (an object whose outline leaks much while tracked looks like its background; no cue).
