@@ -210,7 +210,7 @@ class LineTracker {
   std::vector<unsigned char> col_inside_;  // 2w+1: the current row's samples all inside the image
   std::vector<int> sample_off_;      // 3 x (2w+1): byte offset of each sample's top-left pixel
   std::vector<float> sample_ax_, sample_ay_, sample_val_;  // 3 x (2w+1): its weights and value
-  std::vector<float> colour_row_;  // 3 x (2w+1): one row's smoothed B, G, R samples (colour gradient)
+  std::vector<float> colour_row_;  // 3 x (2w+1): one row's smoothed B, G, R samples (colour gradient); scratch of window_threshold
   std::vector<float> colour_grad_;  // rows x (2w+1) x 3: gradient across, per channel
   std::vector<double> row_v_;    // rows: position of each row along the axis (pixels)
   std::vector<Eigen::Vector2d> row_centre_;  // rows: window centre point of each row (pixels)
