@@ -392,6 +392,15 @@ int LineTracker::extract_edgels(int want, bool cues, int* rejected) {
       if (want != 0 && sign != want) continue;
       const float left = sign * g[j - 1], right = sign * g[j + 1];
       if (!(sg >= left && sg > right)) continue;
+      // Keep the k_max strongest, sorted by decreasing strength.
+      int pos;
+      if (count < k_max) {
+        pos = count;
+      } else if (sg > slots[k_max - 1].strength) {
+        pos = k_max - 1;
+      } else {
+        continue;
+      }
       // Sub-pixel peak: vertex of the parabola through the three values; on a blurred edge's
       // plateau (a run of at least ramp_min_width edge pixels of this sign at half the peak or
       // more, within the search range: a neighbouring edge's half is not ours), where the noise decides
@@ -421,15 +430,6 @@ int LineTracker::extract_edgels(int want, bool cues, int* rejected) {
           }
           delta = moment / sum;
         }
-      }
-      // Keep the k_max strongest, sorted by decreasing strength.
-      int pos;
-      if (count < k_max) {
-        pos = count;
-      } else if (sg > slots[k_max - 1].strength) {
-        pos = k_max - 1;
-      } else {
-        continue;
       }
       if (cues && !appearance_ok(i, j)) {
         ++n_rejected;
