@@ -63,7 +63,9 @@ DetectionResult Detector::detect(const image::ColourView& bgr, std::span<Hypothe
   use_colour_ = regions > 0;
   if (!(use_colour_ ? pyramid_.compute(bgr, search_threshold(p_.search), colour_roi()) : set_image(bgr)))
     return DetectionResult{DetectionResult::Status::kBadImage};
+  frame_colour_ = bgr;
   DetectionResult r = run(out);
+  frame_colour_ = image::ColourView{};
   use_colour_ = false;
   r.colour_regions = regions;
   r.colour_ms = colour_ms;
@@ -282,6 +284,14 @@ DetectionResult Detector::run(std::span<Hypothesis> out) {
     aligner_.refine(pyramid_, h.T_cam_obj);
     h.verification = aligner_.verify(pyramid_, h.T_cam_obj);
     h.verified = h.verification.samples >= p_.verify.min_samples && h.verification.score >= p_.verify.accept_score;
+    // Below the edge test's bar, but edges enough for a partly hidden, noisy or blurred view: its
+    // silhouette must stand out in colour.
+    if (!h.verified && !frame_colour_.empty() && h.verification.samples >= p_.verify.min_samples &&
+        h.verification.score >= p_.verify.leak_score) {
+      aligner_.measure_leak(image::ImageView{}, frame_colour_, h.T_cam_obj, h.verification);
+      h.verified = h.verification.leak_samples >= p_.verify.leak_min_samples && h.verification.leak >= 0.0 &&
+                   h.verification.leak <= p_.verify.max_leak;
+    }
     work_.push_back(h);
   }
   std::sort(work_.begin(), work_.end(), [](const Hypothesis& a, const Hypothesis& b) {

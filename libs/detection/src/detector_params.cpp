@@ -68,6 +68,11 @@ void add_params(ParamRegistry& r, DetectorParams& p) {
   r.add("detect.verify.short_pieces", &f.short_pieces, "an edge piece shorter than min_run samples counts when all of it matches");
   r.add("detect.verify.min_run", &f.min_run, 1, 64, "", "matched samples count only in runs of this many consecutive matches along an edge");
   r.add("detect.verify.accept_score", &f.accept_score, 0.0, 1.0, "", "share of matched edge samples of a verified pose");
+  r.add("detect.verify.leak_score", &f.leak_score, 0.0, 1.0, "",
+        "a pose scoring this or more (below accept_score) is verified when its silhouette stands out in colour (colour images; >= accept_score: off)");
+  r.add("detect.verify.max_leak", &f.max_leak, 0.0, 1.0, "",
+        "... when at most this share of the colours just outside its silhouette look like those just inside");
+  r.add("detect.verify.leak_min_samples", &f.leak_min_samples, 1, 4096, "", "... and at least this many colour samples lie outside it");
   auto& c = p.colour;
   r.add("detect.colour.enabled", &c.enabled,
         "models with a face colour: search only around regions of that colour at 1/4 resolution (colour images)");

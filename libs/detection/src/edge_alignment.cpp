@@ -205,4 +205,21 @@ Verification EdgeAligner::verify(const GradientPyramid& g, const geometry::SE3& 
   return v;
 }
 
+void EdgeAligner::measure_leak(const image::ImageView& grey, const image::ColourView& colour, const geometry::SE3& T,
+                               Verification& v) {
+  v.leak = -1.0;
+  v.leak_samples = 0;
+  if (grey.empty() && colour.empty()) return;
+  const std::size_t n = projector_.sample(T, cam_, p_.sample_spacing_px, samples_);
+  contrast_.reset();
+  for (std::size_t i = 0; i < n; ++i) {
+    const EdgeSample& s = samples_[i];
+    if (s.object_side == 0) continue;
+    contrast_.add_point(grey, colour, s.px, s.object_side > 0 ? Eigen::Vector2d(-s.normal) : s.normal);
+  }
+  contrast_.finish();
+  v.leak_samples = contrast_.samples();
+  if (v.leak_samples > 0) v.leak = static_cast<double>(contrast_.leaked()) / v.leak_samples;
+}
+
 }  // namespace v4r::detection

@@ -12,8 +12,14 @@ namespace v4r::detection {
 EdgeProjector::EdgeProjector(const model::Model& model, double crease_angle)
     : model_(model), cos_crease_(std::cos(crease_angle)) {
   faces_.resize(model.faces().size());
+  centroids_.reserve(model.faces().size());
   std::size_t nv = 0;
-  for (const auto& f : model.faces()) nv += f.loop.size();
+  for (const auto& f : model.faces()) {
+    nv += f.loop.size();
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+    for (const model::Index j : f.loop) c += model.junctions()[j].p;
+    centroids_.push_back(f.loop.empty() ? c : Eigen::Vector3d(c / static_cast<double>(f.loop.size())));
+  }
   poly_.resize(nv);
   cyls_.resize(model.cylinders().size());
   // Worst case: every line, every arc and two limbs per cylinder.
@@ -71,8 +77,8 @@ void EdgeProjector::prepare(const geometry::SE3& T, const geometry::PinholeCamer
   for (std::size_t li = 0; li < lines.size(); ++li) {
     const model::LineEdge& e = lines[li];
     const bool hl = e.face_left != model::kNone, hr = e.face_right != model::kNone;
+    const bool vl = hl && faces_[e.face_left].front, vr = hr && faces_[e.face_right].front;
     if (hl || hr) {
-      const bool vl = hl && faces_[e.face_left].front, vr = hr && faces_[e.face_right].front;
       if (!vl && !vr) continue;
       if (hl && hr && vl && vr && faces[e.face_left].normal.dot(faces[e.face_right].normal) > cos_crease_) continue;
     }
@@ -81,6 +87,9 @@ void EdgeProjector::prepare(const geometry::SE3& T, const geometry::PinholeCamer
     p.b = J[e.b].p;
     p.face_a = e.face_left;
     p.face_b = e.face_right;
+    // A silhouette: exactly one of its faces turned towards the camera.
+    p.silhouette = vl != vr;
+    if (p.silhouette) p.inside_a = p.inside_b = centroids_[vl ? e.face_left : e.face_right];
     pieces_.push_back(p);
   }
   for (std::size_t ai = 0; ai < model_.arcs().size(); ++ai) {
@@ -108,6 +117,9 @@ void EdgeProjector::prepare(const geometry::SE3& T, const geometry::PinholeCamer
       p.a = m.p1 + m.radius * n;
       p.b = m.p2 + m.radius * n;
       p.cylinder = static_cast<int>(ci);
+      p.silhouette = true;  // the axis is on the object's side
+      p.inside_a = m.p1;
+      p.inside_b = m.p2;
       pieces_.push_back(p);
     }
   }
@@ -235,6 +247,15 @@ std::size_t EdgeProjector::sample(const geometry::SE3& T, const geometry::Pinhol
       e.px = px;
       e.normal = Eigen::Vector2d(-tan.y(), tan.x());
       e.piece = static_cast<std::uint32_t>(pi);
+      e.object_side = 0;
+      if (pc.silhouette) {
+        // The side of the object: towards the front face's centroid, or a limb's axis.
+        const Eigen::Vector3d in = T * (pc.inside_a + s * (pc.inside_b - pc.inside_a));
+        if (in.z() > 1e-6) {
+          const double side = e.normal.dot(cam.project(in) - px);
+          e.object_side = side > 0.0 ? 1 : (side < 0.0 ? -1 : 0);
+        }
+      }
     }
   }
   return count;

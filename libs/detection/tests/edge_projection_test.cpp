@@ -126,3 +126,47 @@ TEST(EdgeProjector, NoReturnedSampleIsBehindAnyFaceOfTheShipSection) {
   EXPECT_GT(checked, 5000);
   EXPECT_EQ(hidden_by_faces, 0);
 }
+
+// The silhouette's object side (the colour test's inside): a few pixels along it the renderer's
+// object mask is set; on the convex box, a few pixels the other way it is not (the flange's limbs
+// may lie in front of its own plate), and its creases have no side.
+TEST(EdgeProjector, SilhouetteSamplesKnowWhichSideTheObjectIsOn) {
+  const geometry::PinholeCamera cam = synth::default_camera();
+  for (const bool convex : {true, false}) {
+    const model::Model m = load(convex ? synth::box_cao() : synth::flange_cao());
+    for (int k = 0; k < 4; ++k) {
+      const geometry::SE3 T = geometry::look_at(0.6, 0.4 + 1.3 * k, 0.35 + 0.1 * k);
+      synth::RenderOptions ro;
+      ro.textured_background = false;
+      synth::Renderer r(cam, ro);
+      synth::FrameInfo info;
+      (void)r.render(m, T, 0, nullptr, &info);
+      EdgeProjector proj(m, 0.17);
+      std::vector<EdgeSample> s(2000);
+      const std::size_t n = proj.sample(T, cam, 3.0, s);
+      const auto object_at = [&](const Eigen::Vector2d& p) {
+        const int x = static_cast<int>(std::lround(p.x())), y = static_cast<int>(std::lround(p.y()));
+        return x >= 0 && y >= 0 && x < info.object_mask.cols && y < info.object_mask.rows && info.object_mask.at<std::uint8_t>(y, x) != 0;
+      };
+      int sided = 0, inside = 0, outline = 0, crease = 0;
+      for (std::size_t i = 0; i < n; ++i) {
+        const Eigen::Vector2d& p = s[i].px;
+        const Eigen::Vector2d& nm = s[i].normal;
+        if (s[i].object_side == 0) {
+          crease += object_at(p + 3.0 * nm) && object_at(p - 3.0 * nm) ? 1 : 0;
+          continue;
+        }
+        ++sided;
+        const double side = s[i].object_side;
+        inside += object_at(p + 3.0 * side * nm) ? 1 : 0;
+        outline += object_at(p + 3.0 * side * nm) && !object_at(p - 3.0 * side * nm) ? 1 : 0;
+      }
+      EXPECT_GT(sided, 60) << "pose " << k;
+      EXPECT_GE(inside, 0.95 * sided) << "pose " << k;
+      if (convex) {
+        EXPECT_GE(outline, 0.95 * sided) << "pose " << k;
+        EXPECT_GT(crease, 20) << "pose " << k;
+      }
+    }
+  }
+}

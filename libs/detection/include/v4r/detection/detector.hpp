@@ -24,8 +24,10 @@ struct Hypothesis {
   geometry::SE3 T_cam_obj;      ///< refined pose
   geometry::SE3 T_template;     ///< the template's pose before refinement
   double template_score = 0.0;  ///< fine template match, share of the best possible (0..1)
-  Verification verification;    ///< edge test of the refined pose
-  bool verified = false;        ///< verification.score >= detect.verify.accept_score (with enough samples)
+  Verification verification;    ///< edge test (and, below its bar, colour test) of the refined pose
+  /// verification.score >= detect.verify.accept_score, or (colour images) >= leak_score with a
+  /// leak <= max_leak; with enough samples either way
+  bool verified = false;
   std::uint32_t view = 0;       ///< template view it came from
 };
 
@@ -134,6 +136,7 @@ class Detector {
   EdgeAligner aligner_;
   std::unique_ptr<ColourRegions> colour_;  // null: no colour stage
   bool use_colour_ = false;                // this frame's search is restricted to colour_'s regions
+  image::ColourView frame_colour_;         // the colour frame being searched (detect(bgr) only), for the colour test
   std::vector<std::uint8_t> acc_;         // coarse accumulator, lin_width x lin_height
   std::vector<Candidate> coarse_;         // top coarse candidates (size <= coarse_candidates)
   std::vector<Candidate> fine_;           // fine candidates

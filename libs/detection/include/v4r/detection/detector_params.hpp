@@ -75,6 +75,12 @@ struct VerifyParams {
   bool short_pieces = true;         ///< an edge piece shorter than min_run counts when all of it matches
   int min_run = 4;                  ///< consecutive matched samples of one polarity along an edge that count
   double accept_score = 0.75;       ///< share of samples matched for a verified pose
+  /// A pose scoring at least this (below accept_score) is verified when its silhouette stands
+  /// out in colour (EdgeAligner::measure_leak: leak <= max_leak): an occluded, noisy or blurred
+  /// object. Colour images only; >= accept_score: off.
+  double leak_score = 0.6;
+  double max_leak = 0.3;            ///< largest leak of such a pose
+  int leak_min_samples = 30;        ///< fewer colour samples outside its silhouette: not verified this way
 };
 
 /// \brief The colour stage (the paper's sponge): used when the model's faces carry a colour

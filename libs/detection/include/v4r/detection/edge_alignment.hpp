@@ -7,8 +7,11 @@
 #include "v4r/detection/detector_params.hpp"
 #include "v4r/detection/edge_projection.hpp"
 #include "v4r/detection/gradient_pyramid.hpp"
+#include "v4r/features/silhouette_contrast.hpp"
 #include "v4r/geometry/camera.hpp"
 #include "v4r/geometry/se3.hpp"
+#include "v4r/image/colour_view.hpp"
+#include "v4r/image/image_view.hpp"
 #include "v4r/model/model.hpp"
 
 namespace v4r::detection {
@@ -22,6 +25,10 @@ struct Verification {
   int matched = 0;     ///< ... of which matched a gradient in position and orientation
   int in_runs = 0;     ///< matched samples in runs of at least VerifyParams::min_run consecutive matches along an edge
   double match_share = 0.0;  ///< matched / samples (score counts in_runs / samples)
+  /// The colour test (EdgeAligner::measure_leak; -1 when not measured): the share of colour
+  /// samples just outside the silhouette that look like the colours just inside it.
+  double leak = -1.0;
+  int leak_samples = 0;  ///< outside samples of that test
 };
 
 /// \brief The local 6-DoF alignment of a pose to the image's edges (Gauss-Newton on the
@@ -41,6 +48,12 @@ class EdgeAligner {
   int refine(const GradientPyramid& g, geometry::SE3& T_cam_obj);
   /// The edge test of a pose.
   Verification verify(const GradientPyramid& g, const geometry::SE3& T_cam_obj);
+  /// The colour test of a pose, into v.leak and v.leak_samples: colours sampled at a few pixels
+  /// inside and outside along the silhouette edges (features::SilhouetteContrast). A pose on the
+  /// object's outline, where the object differs from its surroundings, leaks little, occluded
+  /// or not; a pose fitted to background edges, or nested in the object, leaks most samples.
+  void measure_leak(const image::ImageView& grey, const image::ColourView& colour, const geometry::SE3& T_cam_obj,
+                    Verification& v);
 
  private:
   /// The first detect.verify.refine_samples of the sample buffer.
@@ -60,6 +73,7 @@ class EdgeAligner {
   double cos_match_, cos_search_;
   EdgeProjector projector_;
   std::vector<EdgeSample> samples_;
+  features::SilhouetteContrast contrast_;
 };
 
 }  // namespace v4r::detection

@@ -20,6 +20,9 @@ struct EdgeSample {
   Eigen::Vector2d px = Eigen::Vector2d::Zero();
   Eigen::Vector2d normal = Eigen::Vector2d::UnitX();
   std::uint32_t piece = 0;  ///< samples of one edge piece are consecutive and share this number
+  /// On a silhouette (the object on one side only): +1 when the object lies along +normal, -1
+  /// along -normal; 0 on a crease, a circle arc or where the side is not known.
+  std::int8_t object_side = 0;
 };
 
 /// \brief Samples the edges a camera sees of a model at a pose: silhouette and crease lines
@@ -60,6 +63,10 @@ class EdgeProjector {
     int arc = -1;          // arc index or -1
     model::Index face_a = model::kNone, face_b = model::kNone;
     int cylinder = -1;     // cylinder the piece lies on (limbs: not occluded by it)
+    bool silhouette = false;  // the object on one side only: a line with one front face, a limb
+    // A point on the object's side at each end (object frame): a line's front face's centroid,
+    // a limb's axis ends; in between, linearly.
+    Eigen::Vector3d inside_a = Eigen::Vector3d::Zero(), inside_b = Eigen::Vector3d::Zero();
   };
   void prepare(const geometry::SE3& T, const geometry::PinholeCamera& cam);
   /// The front faces that may hide part of a piece whose points project (normalised image
@@ -72,6 +79,7 @@ class EdgeProjector {
   const model::Model& model_;
   double cos_crease_;
   std::vector<FaceCache> faces_;
+  std::vector<Eigen::Vector3d> centroids_;  // of the faces' loops (object frame)
   std::vector<CylCache> cyls_;
   std::vector<Eigen::Vector2d> poly_;
   std::vector<Piece> pieces_;
