@@ -73,8 +73,13 @@ void ObjectSearch::add_object(const scene::Scene& scene, std::size_t object,
   if (slots_.size() < objs.size()) slots_.resize(objs.size());
   if (reports_.size() < objs.size()) reports_.resize(objs.size());
   Slot& s = slots_[object];
+  // The search confirms hypotheses itself (tracked, evidence over two frames, its own leak test);
+  // it takes the detector's ranking by the edge test alone. The detector's colour test moved a
+  // nested pose ahead of the truth on box_occlusion (benchmark) and the search locked onto it.
+  detection::DetectorParams search_dp = dp_;
+  search_dp.verify.leak_score = 1.0;
   s.detector = std::make_unique<detection::Detector>(objs[object].model, std::move(templates),
-                                                     scene.cameras()[0].intrinsics, dp_);
+                                                     scene.cameras()[0].intrinsics, search_dp);
   const detection::ModelExtent ext = detection::model_extent(*objs[object].model);
   s.radius = ext.radius;
   s.centre = ext.centre;
