@@ -288,7 +288,7 @@ DetectionResult Detector::run(std::span<Hypothesis> out) {
     // silhouette must stand out in colour.
     if (!h.verified && !frame_colour_.empty() && h.verification.samples >= p_.verify.min_samples &&
         h.verification.score >= p_.verify.leak_score) {
-      aligner_.measure_leak(image::ImageView{}, frame_colour_, h.T_cam_obj, h.verification);
+      aligner_.measure_leak(frame_colour_, h.T_cam_obj, h.verification);
       h.verified = h.verification.leak_samples >= p_.verify.leak_min_samples && h.verification.leak >= 0.0 &&
                    h.verification.leak <= p_.verify.max_leak;
     }

@@ -6,6 +6,8 @@
 
 #include <Eigen/Cholesky>
 
+#include "v4r/image/image_view.hpp"
+
 namespace v4r::detection {
 
 namespace {
@@ -205,17 +207,16 @@ Verification EdgeAligner::verify(const GradientPyramid& g, const geometry::SE3& 
   return v;
 }
 
-void EdgeAligner::measure_leak(const image::ImageView& grey, const image::ColourView& colour, const geometry::SE3& T,
-                               Verification& v) {
+void EdgeAligner::measure_leak(const image::ColourView& colour, const geometry::SE3& T, Verification& v) {
   v.leak = -1.0;
   v.leak_samples = 0;
-  if (grey.empty() && colour.empty()) return;
+  if (colour.empty()) return;
   const std::size_t n = projector_.sample(T, cam_, p_.sample_spacing_px, samples_);
   contrast_.reset();
   for (std::size_t i = 0; i < n; ++i) {
     const EdgeSample& s = samples_[i];
     if (s.object_side == 0) continue;
-    contrast_.add_point(grey, colour, s.px, s.object_side > 0 ? Eigen::Vector2d(-s.normal) : s.normal);
+    contrast_.add_point(image::ImageView{}, colour, s.px, s.object_side > 0 ? Eigen::Vector2d(-s.normal) : s.normal);
   }
   contrast_.finish();
   v.leak_samples = contrast_.samples();

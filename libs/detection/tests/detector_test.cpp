@@ -249,10 +249,10 @@ TEST(Detector, ColourTestTellsTheOutlineFromANestedPose) {
     const geometry::SE3 T = scenes::random_pose(*f.model, f.params.views, f.cam, rng);
     const cv::Mat img = scenes::render_scene(*f.model, T, f.cam, scenes::Scene::kOcclusion, 7u + static_cast<unsigned>(k));
     Verification truth, nested;
-    aligner.measure_leak(image::ImageView{}, io::as_colour_view(img), T, truth);
+    aligner.measure_leak(io::as_colour_view(img), T, truth);
     geometry::SE3 Tn = T;
     Tn.set_translation(1.25 * T.translation());
-    aligner.measure_leak(image::ImageView{}, io::as_colour_view(img), Tn, nested);
+    aligner.measure_leak(io::as_colour_view(img), Tn, nested);
     EXPECT_GT(truth.leak_samples, 60) << "image " << k;
     EXPECT_GT(nested.leak, truth.leak + 0.2) << "image " << k;
     low += truth.leak <= f.params.verify.max_leak ? 1 : 0;

@@ -11,7 +11,6 @@
 #include "v4r/geometry/camera.hpp"
 #include "v4r/geometry/se3.hpp"
 #include "v4r/image/colour_view.hpp"
-#include "v4r/image/image_view.hpp"
 #include "v4r/model/model.hpp"
 
 namespace v4r::detection {
@@ -52,8 +51,7 @@ class EdgeAligner {
   /// inside and outside along the silhouette edges (features::SilhouetteContrast). A pose on the
   /// object's outline, where the object differs from its surroundings, leaks little, occluded
   /// or not; a pose fitted to background edges, or nested in the object, leaks most samples.
-  void measure_leak(const image::ImageView& grey, const image::ColourView& colour, const geometry::SE3& T_cam_obj,
-                    Verification& v);
+  void measure_leak(const image::ColourView& colour, const geometry::SE3& T_cam_obj, Verification& v);
 
  private:
   /// The first detect.verify.refine_samples of the sample buffer.
