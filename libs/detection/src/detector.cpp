@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "v4r/core/clock.hpp"
+#include "v4r/detection/symmetry.hpp"
 #include "v4r/model/model_colour.hpp"
 
 namespace v4r::detection {
@@ -17,7 +18,8 @@ Detector::Detector(std::shared_ptr<const model::Model> model, std::shared_ptr<co
       cam_(cam),
       p_(p),
       pyramid_(cam.width, cam.height, p.search.fine_spread, p.search.coarse_spread),
-      aligner_(*model_, cam, p) {
+      aligner_(*model_, cam, p),
+      symmetries_(model_symmetries(*model_)) {
   if (p_.colour.enabled)
     if (const auto rgb = model::dominant_face_colour(*model_)) {
       colour_ = std::make_unique<ColourRegions>(*model_, *templates_, cam_, *rgb, p_.colour);
@@ -36,6 +38,7 @@ Detector::Detector(std::shared_ptr<const model::Model> model, std::shared_ptr<co
 
 namespace {
 // detect.search.fine_window is at most 8 (its registered range): at most 18 x 18 anchors.
+constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
 constexpr int kMaxFineWindow = 8;
 constexpr std::size_t kMaxFineAnchors = (2 * kMaxFineWindow + 2) * (2 * kMaxFineWindow + 2);
 GradientThreshold search_threshold(const SearchParams& s) { return {s.min_gradient, s.min_gradient_floor, s.noise_factor}; }
@@ -293,6 +296,24 @@ DetectionResult Detector::run(std::span<Hypothesis> out) {
                    h.verification.leak <= p_.verify.max_leak;
     }
     work_.push_back(h);
+  }
+  // A pose verified by colour alone (its outline stands out, its edges score below accept_score)
+  // is ambiguous when another verified pose, different beyond the symmetries (the same outline
+  // turned over, say), scores nearly as well: neither is kept.
+  if (p_.verify.colour_ambiguity > 0.0) {
+    for (Hypothesis& h : work_) h.ambiguous = false;
+    for (Hypothesis& h : work_) {
+      if (!h.verified || h.verification.score >= p_.verify.accept_score) continue;
+      for (const Hypothesis& o : work_) {
+        if (&o == &h || !o.verified || o.verification.score < h.verification.score - p_.verify.colour_ambiguity) continue;
+        const PoseError e = symmetric_pose_error(o.T_cam_obj, h.T_cam_obj, symmetries_);
+        if (e.translation > p_.verify.distinct_m || e.rotation > p_.verify.distinct_deg * kDegToRad) {
+          h.ambiguous = true;
+          break;
+        }
+      }
+    }
+    for (Hypothesis& h : work_) h.verified = h.verified && !h.ambiguous;
   }
   std::sort(work_.begin(), work_.end(), [](const Hypothesis& a, const Hypothesis& b) {
     if (a.verified != b.verified) return a.verified;

@@ -65,6 +65,8 @@ void add_params(ParamRegistry& r, DetectorParams& p) {
   r.add("detect.verify.min_samples", &f.min_samples, 3, 4096, "", "fewer visible edge samples: the pose is not verified");
   r.add("detect.verify.peak_tolerance", &f.peak_tolerance, 1.0, 10.0, "",
         "a matching gradient is an edge: its neighbours 1 px along the normal have at most this times its gradient");
+  r.add("detect.verify.tangent_support", &f.tangent_support, 0, 4, "px",
+        "a sample's gradient is summed over this many pixels either side along the edge (noise averages out; 0: one pixel)");
   r.add("detect.verify.short_pieces", &f.short_pieces, "an edge piece shorter than min_run samples counts when all of it matches");
   r.add("detect.verify.min_run", &f.min_run, 1, 64, "", "matched samples count only in runs of this many consecutive matches along an edge");
   r.add("detect.verify.accept_score", &f.accept_score, 0.0, 1.0, "", "share of matched edge samples of a verified pose");
@@ -73,6 +75,10 @@ void add_params(ParamRegistry& r, DetectorParams& p) {
   r.add("detect.verify.max_leak", &f.max_leak, 0.0, 1.0, "",
         "... when at most this share of the colours just outside its silhouette look like those just inside");
   r.add("detect.verify.leak_min_samples", &f.leak_min_samples, 1, 4096, "", "... and at least this many colour samples lie outside it");
+  r.add("detect.verify.colour_ambiguity", &f.colour_ambiguity, 0.0, 1.0, "",
+        "a pose verified by colour is withdrawn when a distinct verified pose scores at least its score minus this (0: off)");
+  r.add("detect.verify.distinct_m", &f.distinct_m, 0.0, 10.0, "m", "poses farther apart than this are distinct (colour ambiguity)");
+  r.add("detect.verify.distinct_deg", &f.distinct_deg, 0.0, 180.0, "deg", "... or turned further apart than this");
   auto& c = p.colour;
   r.add("detect.colour.enabled", &c.enabled,
         "models with a face colour: search only around regions of that colour at 1/4 resolution (colour images)");

@@ -154,6 +154,23 @@ Verification EdgeAligner::verify(const GradientPyramid& g, const geometry::SE3& 
     if (!piece_end && run > 0) piece_broken = true;
     run = 0;
   };
+  const int support = std::max(0, p_.tangent_support);
+  // The gradient at offset t along a sample's normal, summed over `support` pixels either side
+  // along the edge; false off the image.
+  const auto gradient_at = [&](const EdgeSample& s, double t, double& gx, double& gy) {
+    gx = gy = 0.0;
+    for (int j = -support; j <= support; ++j) {
+      const int x = round_px(s.px.x() + t * s.normal.x() - j * s.normal.y());
+      const int y = round_px(s.px.y() + t * s.normal.y() + j * s.normal.x());
+      if (x < 1 || y < 1 || x >= w - 1 || y >= h - 1) return false;
+      gx += g.gx(x, y);
+      gy += g.gy(x, y);
+    }
+    const double k = 1.0 / (2 * support + 1);
+    gx *= k;
+    gy *= k;
+    return true;
+  };
   for (std::size_t i = 0; i < n; ++i) {
     const EdgeSample& s = samples_[i];
     int sign = 0;
@@ -161,10 +178,8 @@ Verification EdgeAligner::verify(const GradientPyramid& g, const geometry::SE3& 
     for (int k = -steps; k <= steps; ++k) {
       const double t = 0.5 * k;
       if (std::abs(t) > p_.match_distance_px) continue;
-      const int x = round_px(s.px.x() + t * s.normal.x());
-      const int y = round_px(s.px.y() + t * s.normal.y());
-      if (x < 1 || y < 1 || x >= w - 1 || y >= h - 1) continue;
-      const double gx = g.gx(x, y), gy = g.gy(x, y);
+      double gx = 0.0, gy = 0.0;
+      if (!gradient_at(s, t, gx, gy)) continue;
       const double m2 = gx * gx + gy * gy;
       if (m2 < min_sobel2_) continue;
       const double dot = gx * s.normal.x() + gy * s.normal.y();
@@ -174,10 +189,9 @@ Verification EdgeAligner::verify(const GradientPyramid& g, const geometry::SE3& 
       // ramps would otherwise match any nearby pose).
       bool peak = true;
       for (const int d : {-1, 1}) {
-        const int xn = round_px(s.px.x() + (t + d) * s.normal.x());
-        const int yn = round_px(s.px.y() + (t + d) * s.normal.y());
-        if (xn < 1 || yn < 1 || xn >= w - 1 || yn >= h - 1) continue;
-        const double next = std::abs(g.gx(xn, yn) * s.normal.x() + g.gy(xn, yn) * s.normal.y());
+        double nx = 0.0, ny = 0.0;
+        if (!gradient_at(s, t + d, nx, ny)) continue;
+        const double next = std::abs(nx * s.normal.x() + ny * s.normal.y());
         if (next > p_.peak_tolerance * std::abs(dot)) peak = false;
       }
       if (!peak) continue;
@@ -212,11 +226,15 @@ void EdgeAligner::measure_leak(const image::ColourView& colour, const geometry::
   v.leak_samples = 0;
   if (colour.empty()) return;
   const std::size_t n = projector_.sample(T, cam_, p_.sample_spacing_px, samples_);
+  double probe = 0.0;
+  for (const double d : contrast_.params().offsets_px) probe = std::max(probe, d);
+  projector_.mark_sides(std::span<EdgeSample>(samples_).first(n), probe);
   contrast_.reset();
   for (std::size_t i = 0; i < n; ++i) {
     const EdgeSample& s = samples_[i];
     if (s.object_side == 0) continue;
-    contrast_.add_point(image::ImageView{}, colour, s.px, s.object_side > 0 ? Eigen::Vector2d(-s.normal) : s.normal);
+    contrast_.add_point(image::ImageView{}, colour, s.px, s.object_side > 0 ? Eigen::Vector2d(-s.normal) : s.normal,
+                        s.inside_extent_px);
   }
   contrast_.finish();
   v.leak_samples = contrast_.samples();

@@ -173,6 +173,8 @@ std::size_t EdgeProjector::sample(const geometry::SE3& T, const geometry::Pinhol
                                   std::span<EdgeSample> out, double margin_px) {
   if (out.empty()) return 0;
   prepare(T, cam);
+  T_last_ = T;
+  cam_last_ = cam;
   // Projected length of every piece (polyline of 16 segments), to share the samples out, and its
   // box in normalised image coordinates, for the hidden-line test (points in front of the camera;
   // an arc's polyline box grown by the largest gap between its chords and the arc).
@@ -248,17 +250,51 @@ std::size_t EdgeProjector::sample(const geometry::SE3& T, const geometry::Pinhol
       e.normal = Eigen::Vector2d(-tan.y(), tan.x());
       e.piece = static_cast<std::uint32_t>(pi);
       e.object_side = 0;
-      if (pc.silhouette) {
-        // The side of the object: towards the front face's centroid, or a limb's axis.
-        const Eigen::Vector3d in = T * (pc.inside_a + s * (pc.inside_b - pc.inside_a));
-        if (in.z() > 1e-6) {
-          const double side = e.normal.dot(cam.project(in) - px);
-          e.object_side = side > 0.0 ? 1 : (side < 0.0 ? -1 : 0);
-        }
-      }
+      e.inside_extent_px = 0.0F;
     }
   }
   return count;
+}
+
+bool EdgeProjector::on_model(const Eigen::Vector2d& q) const {
+  for (std::size_t fi = 0; fi < faces_.size(); ++fi) {
+    const FaceCache& f = faces_[fi];
+    if (!f.front || q.x() < f.lo.x() || q.y() < f.lo.y() || q.x() > f.hi.x() || q.y() > f.hi.y()) continue;
+    if (geometry::inside_polygon(q, poly_.data() + f.first, f.count)) return true;
+  }
+  const Eigen::Vector3d d = Eigen::Vector3d(q.x(), q.y(), 1.0).normalized();
+  for (const CylCache& c : cyls_)
+    if (geometry::ray_hits_cylinder(d, 1e12, c.p1, c.axis, c.radius, c.length, c.radius)) return true;
+  return false;
+}
+
+void EdgeProjector::mark_sides(std::span<EdgeSample> samples, double probe_px) const {
+  const geometry::SE3& T = T_last_;
+  const geometry::PinholeCamera& cam = cam_last_;
+  for (EdgeSample& e : samples) {
+    e.object_side = 0;
+    e.inside_extent_px = 0.0F;
+    if (e.piece >= pieces_.size()) continue;
+    const Piece& pc = pieces_[e.piece];
+    if (!pc.silhouette) continue;
+    // The side of the object: towards the front face's centroid, or a limb's axis (at the
+    // sample's place along the piece).
+    const Eigen::Vector3d Xc = T * e.p_obj;
+    if (Xc.z() <= 1e-6) continue;
+    const Eigen::Vector3d span = pc.b - pc.a;
+    const double s = span.squaredNorm() > 0.0 ? std::clamp((e.p_obj - pc.a).dot(span) / span.squaredNorm(), 0.0, 1.0) : 0.0;
+    const Eigen::Vector3d in = T * (pc.inside_a + s * (pc.inside_b - pc.inside_a));
+    if (in.z() <= 1e-6) continue;
+    const double side = e.normal.dot(cam.project(in) - e.px);
+    if (side == 0.0) continue;
+    // Beyond the outline: the background, not another part of the model (near and far probe).
+    const Eigen::Vector2d q(Xc.x() / Xc.z(), Xc.y() / Xc.z());
+    const Eigen::Vector2d out = (side > 0.0 ? -1.0 : 1.0) * e.normal;
+    const Eigen::Vector2d step(out.x() / cam.fx, out.y() / cam.fy);
+    if (on_model(q + 0.3 * probe_px * step) || on_model(q + probe_px * step)) continue;
+    e.object_side = side > 0.0 ? 1 : -1;
+    e.inside_extent_px = static_cast<float>(2.0 * std::abs(side));
+  }
 }
 
 }  // namespace v4r::detection

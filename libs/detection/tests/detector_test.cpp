@@ -220,6 +220,44 @@ TEST(Detector, VerifiesTheTruthOnMotionBlurredImages) {
   EXPECT_GE(verified, 7) << "of " << n;
 }
 
+TEST(Detector, EdgeTestSumsGradientsAlongTheEdgeOnNoisyImages) {
+  // Noise turns a weak edge's gradient by more than the 15 degrees a match allows, so runs of
+  // matches break and the truth scores below accept_score. Summed over 1 px either side along
+  // the edge (detect.verify.tangent_support) the gradient's noise falls by sqrt(3), not its edge.
+  const Fixture f = make(synth::ship_section_cao);
+  DetectorParams one = f.params;
+  one.verify.tangent_support = 0;
+  Detector det(f.model, f.templates, f.cam, f.params), det_one(f.model, f.templates, f.cam, one);
+  std::mt19937 rng(1000u + 3u * 77u);
+  const int n = 16;
+  double sum = 0.0, sum_one = 0.0;
+  int verified = 0, verified_one = 0;
+  for (int k = 0; k < n; ++k) {
+    const geometry::SE3 T = scenes::random_pose(*f.model, f.params.views, f.cam, rng);
+    const cv::Mat img = scenes::render_scene(*f.model, T, f.cam, scenes::Scene::kNoise, 100u + static_cast<unsigned>(k));
+    ASSERT_TRUE(det.set_image(io::as_colour_view(img)));
+    ASSERT_TRUE(det_one.set_image(io::as_colour_view(img)));
+    // Each scores the truth refined on the image by its own edge alignment, as detect() would.
+    geometry::SE3 Tr = T, Tr_one = T;
+    det.refine(Tr);
+    det_one.refine(Tr_one);
+    const Verification v = det.verify(Tr), v_one = det_one.verify(Tr_one);
+    sum += v.score;
+    sum_one += v_one.score;
+    verified += v.score >= f.params.verify.accept_score ? 1 : 0;
+    verified_one += v_one.score >= f.params.verify.accept_score ? 1 : 0;
+    // A pose 15 % farther (nested in the object's image) does not gain a verdict.
+    geometry::SE3 Tn = T;
+    Tn.set_translation(1.15 * T.translation());
+    EXPECT_LT(det.verify(Tn).score, f.params.verify.leak_score) << "image " << k;
+  }
+  std::printf("truth's edge score on noisy images: %.2f summed along the edge, %.2f one pixel; verified %d vs %d of %d\n",
+              sum / n, sum_one / n, verified, verified_one, n);
+  // Measured: mean 0.78 vs 0.72, verified 12 vs 6 of 16.
+  EXPECT_GT(sum / n, sum_one / n + 0.03);
+  EXPECT_GE(verified, verified_one + 3);
+}
+
 TEST(Detector, NoisyFramesKeepTheFullGradientThreshold) {
   // The relative threshold: the floor on a clean frame, the ceiling (min_gradient) on a noisy one.
   const Fixture f = make(synth::box_cao);
@@ -239,7 +277,7 @@ TEST(Detector, NoisyFramesKeepTheFullGradientThreshold) {
 
 TEST(Detector, ColourTestTellsTheOutlineFromANestedPose) {
   // The flange's silhouette, a third of it hidden, leaks fewer of its colours than the same view
-  // 25 % farther (nested in the flange's image), which leaks most samples (0.64..1.0).
+  // 25 % farther (nested in the flange's image), which leaks most samples.
   const Fixture f = make(synth::flange_cao);
   EdgeAligner aligner(*f.model, f.cam, f.params);
   std::mt19937 rng(17);
@@ -254,10 +292,15 @@ TEST(Detector, ColourTestTellsTheOutlineFromANestedPose) {
     Tn.set_translation(1.25 * T.translation());
     aligner.measure_leak(io::as_colour_view(img), Tn, nested);
     EXPECT_GT(truth.leak_samples, 60) << "image " << k;
-    EXPECT_GT(nested.leak, truth.leak + 0.2) << "image " << k;
-    low += truth.leak <= f.params.verify.max_leak ? 1 : 0;
+    // The nested pose never passes; where the truth passes, far apart.
+    EXPECT_GT(nested.leak, f.params.verify.max_leak) << "image " << k;
+    if (truth.leak <= f.params.verify.max_leak) {
+      ++low;
+      EXPECT_GT(nested.leak, truth.leak + 0.4) << "image " << k;
+    }
   }
-  EXPECT_GE(low, n / 2);  // measured 4 of 8 at 0.16..0.25 (the others 0.50..0.72: the occluder's colours)
+  // Measured: 4 of 8 at 0.09..0.18 (nested 0.63..0.99); the others 0.42..0.68 (the occluder's colours).
+  EXPECT_GE(low, n / 2);
 }
 
 TEST(Detector, FindsTheFlangeWithAThirdOfItHidden) {

@@ -35,12 +35,13 @@ bool SilhouetteContrast::sample(const image::ImageView& grey, const image::Colou
 }
 
 void SilhouetteContrast::add_point(const image::ImageView& grey, const image::ColourView& colour,
-                                   const Eigen::Vector2d& p, const Eigen::Vector2d& outward) {
+                                   const Eigen::Vector2d& p, const Eigen::Vector2d& outward, double inside_extent_px) {
   if (!p.allFinite() || !outward.allFinite()) return;
+  const double deepest = std::max(1.0, inside_extent_px);
   for (const double d : p_.offsets_px) {
     if (inside_n_ >= kMaxSamples || outside_n_ >= kMaxSamples) return;
     int in = 0, out = 0;
-    if (!sample(grey, colour, p - d * outward, &in) || !sample(grey, colour, p + d * outward, &out)) continue;
+    if (!sample(grey, colour, p - std::min(d, deepest) * outward, &in) || !sample(grey, colour, p + d * outward, &out)) continue;
     std::uint16_t& h = hist_[static_cast<std::size_t>(in)];
     if (h < 0xffff) ++h;
     inside_[static_cast<std::size_t>(inside_n_++)] = in;

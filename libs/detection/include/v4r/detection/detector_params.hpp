@@ -72,6 +72,9 @@ struct VerifyParams {
   double noise_factor = 1.5;        ///< threshold = noise_factor x the frame's noise, within floor .. min_gradient (0: min_gradient)
   int min_samples = 30;             ///< fewer visible samples: a pose cannot be verified
   double peak_tolerance = 1.0;      ///< a match's neighbours along the normal may have at most this times its gradient
+  /// px either side along the edge over which a sample's gradient is summed (0: the pixel alone):
+  /// noise averages out without blurring across the edge.
+  int tangent_support = 1;
   bool short_pieces = true;         ///< an edge piece shorter than min_run counts when all of it matches
   int min_run = 4;                  ///< consecutive matched samples of one polarity along an edge that count
   double accept_score = 0.75;       ///< share of samples matched for a verified pose
@@ -79,8 +82,13 @@ struct VerifyParams {
   /// out in colour (EdgeAligner::measure_leak: leak <= max_leak): an occluded, noisy or blurred
   /// object. Colour images only; >= accept_score: off.
   double leak_score = 0.6;
-  double max_leak = 0.3;            ///< largest leak of such a pose
+  double max_leak = 0.25;           ///< largest leak of such a pose
   int leak_min_samples = 30;        ///< fewer colour samples outside its silhouette: not verified this way
+  /// Such a pose is withdrawn when another verified pose, distinct (distinct_m, distinct_deg,
+  /// beyond the model's symmetries), scores at least its score minus this (0: off).
+  double colour_ambiguity = 0.05;
+  double distinct_m = 0.05;         ///< metres: poses farther apart are distinct
+  double distinct_deg = 5.0;        ///< degrees: ... or turned further apart
 };
 
 /// \brief The colour stage (the paper's sponge): used when the model's faces carry a colour

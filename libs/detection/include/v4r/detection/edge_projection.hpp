@@ -20,9 +20,13 @@ struct EdgeSample {
   Eigen::Vector2d px = Eigen::Vector2d::Zero();
   Eigen::Vector2d normal = Eigen::Vector2d::UnitX();
   std::uint32_t piece = 0;  ///< samples of one edge piece are consecutive and share this number
-  /// On a silhouette (the object on one side only): +1 when the object lies along +normal, -1
-  /// along -normal; 0 on a crease, a circle arc or where the side is not known.
+  /// Set by EdgeProjector::mark_sides (0 until then). On a silhouette with background beyond it:
+  /// +1 when the object lies along +normal, -1 along -normal; 0 on a crease, a circle arc, an
+  /// outline against another part of the model, or where the side is not known.
   std::int8_t object_side = 0;
+  /// With object_side: how far the object reaches inwards from here, in pixels (twice the distance
+  /// along the normal to the front face's projected centroid, or to a limb's axis); 0 elsewhere.
+  float inside_extent_px = 0.0F;
 };
 
 /// \brief Samples the edges a camera sees of a model at a pose: silhouette and crease lines
@@ -42,6 +46,12 @@ class EdgeProjector {
   /// templates whose camera has no size).
   std::size_t sample(const geometry::SE3& T_cam_obj, const geometry::PinholeCamera& cam, double spacing_px,
                      std::span<EdgeSample> out, double margin_px = 2.0);
+
+  /// After sample(), for its samples (same pose and camera): the object's side of each silhouette
+  /// sample (EdgeSample::object_side, inside_extent_px). An outline whose outside, up to
+  /// `probe_px` out, falls on the model itself (a wall standing on a plate, a part behind another)
+  /// gets no side: beyond it is not the background.
+  void mark_sides(std::span<EdgeSample> samples, double probe_px) const;
 
   [[nodiscard]] const model::Model& model() const { return model_; }
 
@@ -75,9 +85,13 @@ class EdgeProjector {
   /// A point is hidden by one of the collected faces or by a cylinder other than its own.
   [[nodiscard]] bool hidden(const Eigen::Vector3d& p_cam, int own_cylinder) const;
   [[nodiscard]] Eigen::Vector3d piece_point(const Piece& pc, double s) const;
+  /// The ray through `q` (normalised image coordinates) meets a front face or a cylinder.
+  [[nodiscard]] bool on_model(const Eigen::Vector2d& q) const;
 
   const model::Model& model_;
   double cos_crease_;
+  geometry::SE3 T_last_;                // pose and camera of the last sample()
+  geometry::PinholeCamera cam_last_;
   std::vector<FaceCache> faces_;
   std::vector<Eigen::Vector3d> centroids_;  // of the faces' loops (object frame)
   std::vector<CylCache> cyls_;

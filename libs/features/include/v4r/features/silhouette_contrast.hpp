@@ -43,9 +43,12 @@ class SilhouetteContrast {
   void reset();
   /// Colour samples at the offsets inside and outside of the silhouette point `p` (pixels);
   /// `outward` is the unit normal pointing away from the object. `colour` may be empty (then
-  /// `grey` is used). Pairs with a sample outside the image are skipped.
+  /// `grey` is used). Pairs with a sample outside the image are skipped. `inside_extent_px`: how
+  /// far the object reaches inwards from `p` (a thin plate seen edge-on: a few pixels); inside
+  /// samples are taken at most that deep (at least 1 px), outside ones at every offset.
   void add_point(const image::ImageView& grey, const image::ColourView& colour, const Eigen::Vector2d& p,
-                 const Eigen::Vector2d& outward);
+                 const Eigen::Vector2d& outward, double inside_extent_px = kUnbounded);
+  static constexpr double kUnbounded = 1e9;
   /// Counts the leak over the samples added since reset().
   void finish();
 
