@@ -3,6 +3,7 @@
 
 #include "v4r/geometry/polygon.hpp"
 #include "v4r/geometry/ray_cylinder.hpp"
+#include "v4r/model/face_centroid.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -14,11 +15,9 @@ EdgeProjector::EdgeProjector(const model::Model& model, double crease_angle)
   faces_.resize(model.faces().size());
   centroids_.reserve(model.faces().size());
   std::size_t nv = 0;
-  for (const auto& f : model.faces()) {
-    nv += f.loop.size();
-    Eigen::Vector3d c = Eigen::Vector3d::Zero();
-    for (const model::Index j : f.loop) c += model.junctions()[j].p;
-    centroids_.push_back(f.loop.empty() ? c : Eigen::Vector3d(c / static_cast<double>(f.loop.size())));
+  for (std::size_t fi = 0; fi < model.faces().size(); ++fi) {
+    nv += model.faces()[fi].loop.size();
+    centroids_.push_back(model::face_centroid(model, static_cast<model::Index>(fi)));
   }
   poly_.resize(nv);
   cyls_.resize(model.cylinders().size());

@@ -1,6 +1,8 @@
 // v4r - robust model-based object tracking. MIT licence.
 #include "v4r/pipeline/view_predictor.hpp"
 
+#include "v4r/model/face_centroid.hpp"
+
 #include <algorithm>
 #include <cmath>
 
@@ -35,7 +37,6 @@ void ViewPredictor::predict(const scene::Object& obj, scene::View& view, const s
   mark_ambiguous(view, cam);
 
   // Which side of each visible edge shows the object (its visible faces), for cue integration.
-  const auto& faces = model.faces();
   for (scene::LineFeature& f : view.lines) {
     if (!f.visible || f.ambiguous) continue;
     const model::LineEdge& e = model.lines()[f.edge];
@@ -44,10 +45,7 @@ void ViewPredictor::predict(const scene::Object& obj, scene::View& view, const s
     bool side[2] = {false, false};
     for (const model::Index fi : {e.face_left, e.face_right}) {
       if (fi == model::kNone || !view.face_visible[fi]) continue;
-      Eigen::Vector3d c = Eigen::Vector3d::Zero();
-      for (const model::Index j : faces[fi].loop) c += model.junctions()[j].p;
-      c /= static_cast<double>(faces[fi].loop.size());
-      const Eigen::Vector3d pc = view.T_cam_obj * c;
+      const Eigen::Vector3d pc = view.T_cam_obj * model::face_centroid(model, fi);
       if (pc.z() <= 1e-6) continue;
       side[n.dot(K.project(pc) - a) > 0 ? 1 : 0] = true;
     }

@@ -3,6 +3,7 @@
 
 #include "v4r/geometry/polygon.hpp"
 #include "v4r/geometry/ray_cylinder.hpp"
+#include "v4r/model/face_centroid.hpp"
 
 #include <cmath>
 
@@ -148,9 +149,7 @@ void VisibilityTester::update(const model::Model& model, const geometry::SE3& T_
     c.count = static_cast<std::uint32_t>(f.loop.size());
     cursor += c.count;
     // Face orientation with hysteresis.
-    Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
-    for (model::Index j : f.loop) centroid += junctions[j].p;
-    centroid /= static_cast<double>(f.loop.size());
+    const Eigen::Vector3d centroid = model::face_centroid(model, static_cast<model::Index>(fi));
     const Eigen::Vector3d to_cam = (cam_in_obj - centroid).normalized();
     const double cosang = f.normal.dot(to_cam);
     const bool was = fi < face_visible.size() && face_visible[fi] != 0;
