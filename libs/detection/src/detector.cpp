@@ -300,12 +300,14 @@ DetectionResult Detector::run(std::span<Hypothesis> out) {
   // A pose verified by colour alone (its outline stands out, its edges score below accept_score)
   // is ambiguous when another verified pose, different beyond the symmetries (the same outline
   // turned over, say), scores nearly as well: neither is kept.
-  if (p_.verify.colour_ambiguity > 0.0) {
+  if (p_.verify.colour_ambiguity > 0.0 || p_.verify.edge_ambiguity > 0.0) {
     for (Hypothesis& h : work_) h.ambiguous = false;
     for (Hypothesis& h : work_) {
-      if (!h.verified || h.verification.score >= p_.verify.accept_score) continue;
+      if (!h.verified) continue;
+      const double margin = h.verification.score >= p_.verify.accept_score ? p_.verify.edge_ambiguity : p_.verify.colour_ambiguity;
+      if (margin <= 0.0) continue;
       for (const Hypothesis& o : work_) {
-        if (&o == &h || !o.verified || o.verification.score < h.verification.score - p_.verify.colour_ambiguity) continue;
+        if (&o == &h || !o.verified || o.verification.score < h.verification.score - margin) continue;
         const PoseError e = symmetric_pose_error(o.T_cam_obj, h.T_cam_obj, symmetries_);
         if (e.translation > p_.verify.distinct_m || e.rotation > p_.verify.distinct_deg * kDegToRad) {
           h.ambiguous = true;

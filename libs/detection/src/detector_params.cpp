@@ -77,6 +77,8 @@ void add_params(ParamRegistry& r, DetectorParams& p) {
   r.add("detect.verify.leak_min_samples", &f.leak_min_samples, 1, 4096, "", "... and at least this many colour samples lie outside it");
   r.add("detect.verify.colour_ambiguity", &f.colour_ambiguity, 0.0, 1.0, "",
         "a pose verified by colour is withdrawn when a distinct verified pose scores at least its score minus this (0: off)");
+  r.add("detect.verify.edge_ambiguity", &f.edge_ambiguity, 0.0, 1.0, "",
+        "a pose verified by its edges is withdrawn when a distinct verified pose scores at least its score minus this (0: off)");
   r.add("detect.verify.distinct_m", &f.distinct_m, 0.0, 10.0, "m", "poses farther apart than this are distinct (colour ambiguity)");
   r.add("detect.verify.distinct_deg", &f.distinct_deg, 0.0, 180.0, "deg", "... or turned further apart than this");
   auto& c = p.colour;

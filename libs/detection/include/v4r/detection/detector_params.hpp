@@ -87,6 +87,7 @@ struct VerifyParams {
   /// Such a pose is withdrawn when another verified pose, distinct (distinct_m, distinct_deg,
   /// beyond the model's symmetries), scores at least its score minus this (0: off).
   double colour_ambiguity = 0.05;
+  double edge_ambiguity = 0.0;      ///< the same for a pose verified by its edges (0: off)
   double distinct_m = 0.05;         ///< metres: poses farther apart are distinct
   double distinct_deg = 5.0;        ///< degrees: ... or turned further apart
 };
