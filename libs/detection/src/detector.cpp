@@ -37,8 +37,8 @@ Detector::Detector(std::shared_ptr<const model::Model> model, std::shared_ptr<co
 }
 
 namespace {
-// detect.search.fine_window is at most 8 (its registered range): at most 18 x 18 anchors.
 constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
+// detect.search.fine_window is at most 8 (its registered range): at most 18 x 18 anchors.
 constexpr int kMaxFineWindow = 8;
 constexpr std::size_t kMaxFineAnchors = (2 * kMaxFineWindow + 2) * (2 * kMaxFineWindow + 2);
 GradientThreshold search_threshold(const SearchParams& s) { return {s.min_gradient, s.min_gradient_floor, s.noise_factor}; }
@@ -299,7 +299,8 @@ DetectionResult Detector::run(std::span<Hypothesis> out) {
   }
   // A pose verified by colour alone (its outline stands out, its edges score below accept_score)
   // is ambiguous when another verified pose, different beyond the symmetries (the same outline
-  // turned over, say), scores nearly as well: neither is kept.
+  // turned over, say), scores within colour_ambiguity of it; one verified by its edges, within
+  // edge_ambiguity (off by default). Ambiguous poses are not verified.
   if (p_.verify.colour_ambiguity > 0.0 || p_.verify.edge_ambiguity > 0.0) {
     for (Hypothesis& h : work_) h.ambiguous = false;
     for (Hypothesis& h : work_) {
