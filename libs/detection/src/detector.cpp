@@ -37,7 +37,7 @@ Detector::Detector(std::shared_ptr<const model::Model> model, std::shared_ptr<co
 }
 
 namespace {
-constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
+constexpr double kDeg = 3.14159265358979323846 / 180.0;
 // detect.search.fine_window is at most 8 (its registered range): at most 18 x 18 anchors.
 constexpr int kMaxFineWindow = 8;
 constexpr std::size_t kMaxFineAnchors = (2 * kMaxFineWindow + 2) * (2 * kMaxFineWindow + 2);
@@ -310,7 +310,7 @@ DetectionResult Detector::run(std::span<Hypothesis> out) {
       for (const Hypothesis& o : work_) {
         if (&o == &h || !o.verified || o.verification.score < h.verification.score - margin) continue;
         const PoseError e = symmetric_pose_error(o.T_cam_obj, h.T_cam_obj, symmetries_);
-        if (e.translation > p_.verify.distinct_m || e.rotation > p_.verify.distinct_deg * kDegToRad) {
+        if (e.translation > p_.verify.distinct_m || e.rotation > p_.verify.distinct_deg * kDeg) {
           h.ambiguous = true;
           break;
         }

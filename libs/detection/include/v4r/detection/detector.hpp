@@ -28,8 +28,9 @@ struct Hypothesis {
   /// verification.score >= detect.verify.accept_score, or (colour images) >= leak_score with a
   /// leak <= max_leak; with enough samples either way
   bool verified = false;
-  /// Verified by colour, then withdrawn: another verified pose, distinct beyond the model's
-  /// symmetries, scores within detect.verify.colour_ambiguity of it
+  /// Verified, then withdrawn: another verified pose, distinct beyond the model's symmetries,
+  /// scores within detect.verify.colour_ambiguity of it (a colour verdict) or edge_ambiguity (an
+  /// edge verdict)
   bool ambiguous = false;
   std::uint32_t view = 0;       ///< template view it came from
 };
@@ -145,7 +146,7 @@ class Detector {
   std::vector<Candidate> fine_;           // fine candidates
   std::vector<Candidate> picked_;         // distinct fine candidates
   std::vector<Hypothesis> work_;          // refined hypotheses before sorting
-  std::vector<geometry::SE3> symmetries_;  // of the model (ambiguity of colour-verified poses)
+  std::vector<geometry::SE3> symmetries_;  // of the model (ambiguity of verified poses)
 };
 
 }  // namespace v4r::detection
