@@ -74,20 +74,25 @@ TEST(BackgroundSearch, HandsFramesOverWithoutAllocatingAndSetsTheFoundPose) {
   pipeline::BackgroundSearch bg(sp, [&gate](std::stop_token st) { gate.hook(st); });
   bg.set_search(std::move(search), 1);
 
-  // Warm-up: the first frames size the three buffers that circulate between the threads.
+  // Warm-up: the first frames size the three buffers that circulate between the threads. The
+  // worker's buffer is sized only when it takes a frame, and the empty one it gives back reaches
+  // the cycle's thread two frames later: so the warm-up waits for the worker to take the first
+  // frame (however late its thread runs), then hands over three more.
   const std::span<const pipeline::CameraImage> images(&img, 1);
   test::g_allocations = 0;
   test::g_counting = true;
-  for (int i = 0; i < 4; ++i) {
+  EXPECT_EQ(bg.apply(sc), 0);
+  bg.update(sc, images, 0.0);
+  {
+    std::unique_lock lock(gate.m);
+    ASSERT_TRUE(gate.cv.wait_for(lock, std::chrono::seconds(30), [&] { return gate.taken == 1; }));
+  }
+  for (int i = 1; i < 4; ++i) {
     EXPECT_EQ(bg.apply(sc), 0);
     bg.update(sc, images, i / 30.0);
   }
   test::g_counting = false;
   EXPECT_GT(test::g_allocations, 0) << "the first frames size the buffers (and show the counter works)";
-  {
-    std::unique_lock lock(gate.m);
-    ASSERT_TRUE(gate.cv.wait_for(lock, std::chrono::seconds(30), [&] { return gate.taken == 1; }));
-  }
   test::g_allocations = 0;
   test::g_counting = true;
   for (int i = 4; i < 24; ++i) {
