@@ -139,6 +139,10 @@ ParamRegistry make_registry(CycleParams& p) {
   r.add("filter.min_noise_scale", &p.filter.min_noise_scale, 0.0, 1.0, "", "smoother: smallest scale of its process noise");
   r.add("filter.noise_decay", &p.filter.noise_decay, 0.0, 1.0, "", "smoother: noise scale factor per update that shows no motion");
   r.add("filter.motion_chi2", &p.filter.motion_chi2, 0.0, 1e6, "", "smoother: innovation chi^2 (6 dof) that shows motion: full noise at once");
+  r.add("filter.consistency_rate", &p.consistency_rate, 0.0, 1.0, "",
+        "weight of each frame's pose jitter (chi^2 / 6 of the third difference of 4 measured poses) in the running mean that scales the reported covariance (0: off)");
+  r.add("filter.consistency_max_scale", &p.consistency_max_scale, 1.0, 1e6, "",
+        "cap of one frame's term in that mean");
   r.add("filter.rest_velocity_chi2", &p.rest_velocity_chi2, 0.0, 1e6, "",
         "smoother: at rest below this velocity chi^2 (6 dof) of the tracking filter (averages), moving above (reports the measurement)");
   r.add("filter.rest_velocity_sigma", &p.rest_velocity_sigma, 0.0, 10.0, "m/s", "smoother: velocity uncertainty of an object at rest");

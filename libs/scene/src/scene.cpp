@@ -54,6 +54,8 @@ void Scene::set_pose(std::size_t object, const geometry::SE3& T_ref_obj) {
   o.measured = TrackStatus::kTracking;
   o.lost_by_image = false;
   o.bad_frames = 0;
+  o.consistency = 1.0;
+  o.consistency_frames = 0;
   o.confirmed = false;
   o.tracked_once = false;
   o.last_stamp = -1.0;

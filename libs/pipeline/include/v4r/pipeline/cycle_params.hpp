@@ -132,6 +132,14 @@ struct CycleParams {
   /// and averages the measurements; above: it restarts at each measurement, so a moving object
   /// is reported where it is measured, with no lag.
   double rest_velocity_chi2 = 4.0;
+  /// Covariance matching: Object::consistency follows the normalised jitter of the measured
+  /// poses (chi^2 / 6 of the third difference of four consecutive ones) with this weight (0:
+  /// off), each term capped at consistency_max_scale, and the reported covariance is multiplied
+  /// by max(1, consistency). A solve's covariance comes from its own residuals, which an error
+  /// shared by its lines (a blurred outline, a weak geometry) does not raise; the frame-to-frame
+  /// scatter of the poses shows it.
+  double consistency_rate = 0.1;
+  double consistency_max_scale = 30.0;
   double rest_velocity_sigma = 1e-4;          ///< m/s: velocity of an object at rest
   double rest_angular_velocity_sigma = 1e-3;  ///< rad/s: angular velocity of an object at rest
   double frame_interval_s = 1.0 / 30.0;  ///< seconds between frames when no time stamps are given

@@ -130,6 +130,15 @@ struct Object {
   /// drives the search width, the prediction and the prior; `status` is what is reported.
   TrackStatus measured = TrackStatus::kUninitialised;
   int bad_frames = 0;                 ///< consecutive frames whose measurement was weak or not used
+  /// Running mean of the measured poses' normalised jitter (chi^2 of the third difference of
+  /// four consecutive measurements, over 6 degrees of freedom): 1 when the measurements scatter
+  /// as their covariance says, more when they jitter more (a blurred image, a weak geometry);
+  /// the reported covariance is scaled by it where it exceeds 1 (CycleParams::consistency_rate).
+  double consistency = 1.0;
+  geometry::SE3 T_meas_prev[3];           ///< the last three measured poses used for it, newest first
+  geometry::Matrix6d cov_meas_prev[3] = {geometry::Matrix6d::Zero(), geometry::Matrix6d::Zero(),
+                                         geometry::Matrix6d::Zero()};  ///< and their reported covariances
+  int consistency_frames = 0;             ///< consecutive measurements held in T_meas_prev (0..3)
   /// This frame's image and features by themselves say `lost` (the measurement was not used or
   /// the evidence is below status.lost_evidence); `status` stays lost longer (hysteresis).
   bool lost_by_image = false;
