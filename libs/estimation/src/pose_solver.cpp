@@ -30,7 +30,8 @@
 //      using the redundancy I - J H^-1 J^T) is removed while it exceeds the threshold.
 //   4. once, rejected observations that agree with the final pose (predicted residual within the
 //      threshold) are re-admitted and step 3 is repeated.
-//   5. covariance max(sigma0, min_sigma0)^2 * H^-1, rms in pixels, inlier flags.
+//   5. covariance max(sigma0, min_sigma0)^2 * H^-1, rms in pixels, inlier flags; without a
+//      prior also the sandwich covariance, each inlier's spread from its own residual.
 
 #include "v4r/estimation/pose_solver.hpp"
 
@@ -810,6 +811,28 @@ PoseResult PoseSolver::solve(const SE3& T_init, const ObservationSet& obs, const
   res.sigma0 = dof > 0 ? std::sqrt(ne.chi2 / dof) : 1.0;
   const double s0 = std::max(res.sigma0, p_.min_sigma0);
   res.covariance = s0 * s0 * H_inv;
+  if (!has_prior_) {
+    pose_cameras(T, obs);
+    Eval e;
+    Matrix6d C = Matrix6d::Zero();
+    int count = 0;
+    for (std::size_t s = 0; s < n; ++s) {
+      if (active_[s] != kActive) continue;
+      evaluate(obs, s, /*jacobian=*/true, e);
+      if (e.m == 0) continue;
+      // The residual's cofactor Q = I - J H^-1 J^T (its covariance in units of sigma^2):
+      // Q^-1/2 r has unit covariance for independent errors of the a-priori form.
+      Eigen::Matrix3d Q = Eigen::Matrix3d::Identity() - e.Jw * H_inv * e.Jw.transpose();
+      Q.diagonal().array() += kCofactorEps;
+      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> qs(0.5 * (Q + Q.transpose()));
+      const Eigen::Vector3d q = qs.eigenvalues().cwiseMax(kCofactorEps);
+      const Eigen::Vector3d u = qs.eigenvectors() * (qs.eigenvectors().transpose() * e.rw).cwiseQuotient(q.cwiseSqrt());
+      const Vector6d d = H_inv * e.Jw.transpose() * u;
+      C.noalias() += d * d.transpose();
+      ++count;
+    }
+    if (count >= 2) res.sandwich_covariance = C;
+  }
   res.rms_px = ne.image_residuals > 0 ? std::sqrt(ne.sum_sq_px / ne.image_residuals) : 0.0;
   res.converged = converged;
   res.T_cam_obj = T;

@@ -62,6 +62,7 @@ ObjectSolve ObjectSolver::solve(const geometry::SE3& T_init, ObservationBuffer& 
   out.information = es.eigenvectors() * ev.asDiagonal() * es.eigenvectors().transpose();
   const double s_report = std::max(result.sigma0, p_.report_min_sigma0);
   out.report_scale = (s_report * s_report) / (s0 * s0);
+  if (p_.report_sandwich && !with_prior) out.sandwich = result.sandwich_covariance;
   return out;
 }
 

@@ -5,34 +5,27 @@
 #include <cmath>
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 
 #include "v4r/geometry/se3_jacobians.hpp"
 
 namespace v4r::pipeline {
 
-ObjectMeasurement combine_solves(std::span<const ObjectSolve> solves) {
-  ObjectMeasurement m;
-  geometry::SE3 T0;
-  geometry::Matrix6d info_sum = geometry::Matrix6d::Zero(), report_info = geometry::Matrix6d::Zero();
-  geometry::Vector6d info_xi = geometry::Vector6d::Zero();
-  for (const ObjectSolve& s : solves) {
-    if (!s.updated) continue;
-    if (m.solves == 0) T0 = s.T_ref_obj;
-    m.prior_used = m.prior_used || s.prior_used;
-    info_sum += s.information;
-    report_info += s.information / s.report_scale;
-    info_xi += s.information * (s.T_ref_obj * T0.inverse()).log();
-    ++m.solves;
-  }
-  if (m.solves == 0) return m;
-  m.covariance = info_sum.inverse();
-  m.reported_covariance = report_info.inverse();
-  m.T_ref_obj = m.solves == 1 ? T0 : geometry::SE3::exp(m.covariance * info_xi) * T0;
-  return m;
-}
-
 namespace {
+
+/// Information of the covariance a solve reports: its own (ObjectSolve::report_scale), widened
+/// to cover the sandwich covariance in every direction where that is larger (their Loewner upper bound
+/// C + [J - C]+, the positive part taken over the eigenvalues).
+geometry::Matrix6d report_information(const ObjectSolve& s) {
+  const geometry::Matrix6d info = s.information / s.report_scale;
+  if (!s.sandwich.allFinite() || s.sandwich.trace() <= 0.0) return info;
+  const geometry::Matrix6d C = info.inverse();
+  const Eigen::SelfAdjointEigenSolver<geometry::Matrix6d> es(0.5 * (s.sandwich - C + (s.sandwich - C).transpose()));
+  const geometry::Vector6d ev = es.eigenvalues().cwiseMax(0.0);
+  const geometry::Matrix6d W = C + es.eigenvectors() * ev.asDiagonal() * es.eigenvectors().transpose();
+  return W.inverse();
+}
 
 void track_consistency(scene::Object& obj, const geometry::SE3& T_meas, const geometry::Matrix6d& cov,
                        const CycleParams& p) {
@@ -69,6 +62,27 @@ void track_consistency(scene::Object& obj, const geometry::SE3& T_meas, const ge
 }
 
 }  // namespace
+
+ObjectMeasurement combine_solves(std::span<const ObjectSolve> solves) {
+  ObjectMeasurement m;
+  geometry::SE3 T0;
+  geometry::Matrix6d info_sum = geometry::Matrix6d::Zero(), report_info = geometry::Matrix6d::Zero();
+  geometry::Vector6d info_xi = geometry::Vector6d::Zero();
+  for (const ObjectSolve& s : solves) {
+    if (!s.updated) continue;
+    if (m.solves == 0) T0 = s.T_ref_obj;
+    m.prior_used = m.prior_used || s.prior_used;
+    info_sum += s.information;
+    report_info += report_information(s);
+    info_xi += s.information * (s.T_ref_obj * T0.inverse()).log();
+    ++m.solves;
+  }
+  if (m.solves == 0) return m;
+  m.covariance = info_sum.inverse();
+  m.reported_covariance = report_info.inverse();
+  m.T_ref_obj = m.solves == 1 ? T0 : geometry::SE3::exp(m.covariance * info_xi) * T0;
+  return m;
+}
 
 void update_object(scene::Object& obj, const ObjectMeasurement& m, const CycleParams& p, ObjectReport& rep,
                    double stamp_s) {

@@ -65,6 +65,8 @@ ParamRegistry make_registry(CycleParams& p) {
   r.add("solver.cauchy_c", &s.cauchy_c, 0.5, 20.0, "sigma", "Cauchy constant of the robust pass");
   r.add("solver.adaptive_threshold", &s.adaptive_threshold, "widen the outlier threshold when sigma is too optimistic");
   r.add("solver.min_sigma0", &s.min_sigma0, 0.0, 10.0, "", "floor of the a-posteriori scale of the covariance");
+  r.add("solver.report_sandwich", &p.report_sandwich,
+        "the reported covariance also covers the solve's sandwich covariance (each observation's spread from its own residual)");
   r.add("solver.report_min_sigma0", &p.report_min_sigma0, 0.0, 10.0, "",
         "floor of the a-posteriori scale of the reported covariance");
   // Visibility.

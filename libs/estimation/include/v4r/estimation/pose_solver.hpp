@@ -160,6 +160,13 @@ struct PoseResult {
   int inliers = 0;          ///< observations kept after outlier removal
   double rms_px = 0.0;      ///< RMS residual of the image inliers (2-D points, lines, circles), in pixels
   double sigma0 = 1.0;      ///< a-posteriori standard deviation of unit weight
+  /// Sandwich (heteroscedasticity-consistent, "HC2") covariance of the pose (left tangent, m^2,
+  /// rad^2): H^-1 (sum over the inliers of J^T Q^-1/2 r r^T Q^-1/2 J) H^-1, normalised units,
+  /// Q = I - J H^-1 J^T the cofactor of the inlier's residual r. It takes each observation's
+  /// spread from its own residual instead of one sigma0 for all: unbiased for independent
+  /// errors of the a-priori form, and one observation that pulls the pose alone (a background
+  /// edge taken for the model's) widens it. Zero with a prior or fewer than 2 inliers.
+  geometry::Matrix6d sandwich_covariance = geometry::Matrix6d::Zero();
   double noise_scale = 1.0;  ///< noise scale found by the robust pass (units of a-priori sigma; 1 without it)
   int outlier_rounds = 0;   ///< observations removed by the remove-largest loop (after the robust pass)
   bool converged = false;   ///< the last Gauss-Newton run reached step_tolerance

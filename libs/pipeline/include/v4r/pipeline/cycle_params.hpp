@@ -85,6 +85,9 @@ struct CycleParams {
   /// Floor of the a-posteriori scale of the reported covariance (the solver's min_sigma0 floors
   /// the one the filter uses, higher to keep it cautious).
   double report_min_sigma0 = 0.25;
+  /// The reported covariance also covers the solve's sandwich covariance (each observation's
+  /// spread taken from its own residual, PoseResult::sandwich_covariance) where that is larger.
+  bool report_sandwich = true;
   bool use_junctions = true;            ///< intersect tracked edges at model junctions (paper 3.3)
   double junction_min_angle = 0.35;     ///< radians: smallest angle between edges intersected at a junction
   double junction_sigma_scale = 1.5;    ///< junction sigma = line sigma * this / sin(angle)

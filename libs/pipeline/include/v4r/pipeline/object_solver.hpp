@@ -20,6 +20,9 @@ struct ObjectSolve {
   /// factor with the report's floor (CycleParams::report_min_sigma0) instead of the solver's
   /// (which protects the filter): (max(sigma0, report floor) / max(sigma0, min_sigma0))^2.
   double report_scale = 1.0;
+  /// The solve's sandwich covariance (PoseResult::sandwich_covariance; zero: none): the
+  /// reported covariance covers it too (CycleParams::report_sandwich).
+  geometry::Matrix6d sandwich = geometry::Matrix6d::Zero();
   estimation::PoseResult result;  ///< the last solve (its T_cam_obj is T_ref_obj)
 };
 
