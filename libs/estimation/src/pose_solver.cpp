@@ -811,7 +811,7 @@ PoseResult PoseSolver::solve(const SE3& T_init, const ObservationSet& obs, const
   res.sigma0 = dof > 0 ? std::sqrt(ne.chi2 / dof) : 1.0;
   const double s0 = std::max(res.sigma0, p_.min_sigma0);
   res.covariance = s0 * s0 * H_inv;
-  if (!has_prior_) {
+  if (p_.sandwich && !has_prior_) {
     pose_cameras(T, obs);
     Eval e;
     Matrix6d C = Matrix6d::Zero();

@@ -17,6 +17,7 @@ ObjectSolve ObjectSolver::solve(const geometry::SE3& T_init, ObservationBuffer& 
 
   solver_.params() = p_.solver;
   solver_.params().focal_px = buf.cameras.front().focal_px;
+  solver_.params().sandwich = p_.report_sandwich;
   estimation::ObservationSet obs;
   obs.points = buf.points;
   obs.lines = buf.lines;

@@ -152,7 +152,8 @@ ParamRegistry make_registry(CycleParams& p) {
         "smoother: angular velocity uncertainty of an object at rest");
   r.add("filter.frame_interval", &p.frame_interval_s, 1e-4, 10.0, "s", "time between frames without time stamps");
   // Parameters that existed without a name (issue 13: `v4r config` prints every parameter).
-  // Not here: ellipse max_samples (from ellipse.samples) and solver focal_px (from the camera).
+  // Not here: ellipse max_samples (from ellipse.samples), solver focal_px (from the camera) and
+  // sandwich (from solver.report_sandwich).
   r.add("track.side_offset", &t.side_offset, 0, 32, "px", "from an edge pixel to the first appearance sample across the edge");
   r.add("track.side_width", &t.side_width, 1, 16, "px", "appearance samples on each side of an edge pixel");
   r.add("track.chroma_min_sigma", &t.chroma_min_sigma, 0.0, 1.0, "", "floor of the rg-chromaticity deviation (colour input)");

@@ -144,6 +144,8 @@ struct PoseSolverParams {
   /// 1/min_sigma0^2 times tighter than the a-priori covariance (protects a downstream filter when
   /// the redundancy is small and sigma0 happens to come out tiny).
   double min_sigma0 = 0.5;
+  /// Compute PoseResult::sandwich_covariance (n more residual evaluations after the solve).
+  bool sandwich = true;
   double degeneracy_ratio = 1e-10;  ///< min/max eigenvalue of the balanced normal matrix below: kDegenerate
   double min_depth = 1e-3;          ///< depth (m) used for weights of points at or behind the camera
 };
@@ -165,7 +167,8 @@ struct PoseResult {
   /// Q = I - J H^-1 J^T the cofactor of the inlier's residual r. It takes each observation's
   /// spread from its own residual instead of one sigma0 for all: unbiased for independent
   /// errors of the a-priori form, and one observation that pulls the pose alone (a background
-  /// edge taken for the model's) widens it. Zero with a prior or fewer than 2 inliers.
+  /// edge taken for the model's) widens it. Zero with a prior, fewer than 2 inliers or
+  /// PoseSolverParams::sandwich off.
   geometry::Matrix6d sandwich_covariance = geometry::Matrix6d::Zero();
   double noise_scale = 1.0;  ///< noise scale found by the robust pass (units of a-priori sigma; 1 without it)
   int outlier_rounds = 0;   ///< observations removed by the remove-largest loop (after the robust pass)
