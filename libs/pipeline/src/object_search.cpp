@@ -46,6 +46,8 @@ void add_search_params(ParamRegistry& r, ObjectSearchParams& p) {
   r.add("search.confirm_translation", &p.confirm_translation_m, 0.0, 10.0, "m",
         "a found pose is confirmed when the next frame finds it again this close");
   r.add("search.confirm_rotation", &p.confirm_rotation_deg, 0.0, 180.0, "deg", "... and within this angle");
+  r.add("search.nested_leak_margin", &p.nested_leak_margin, 0.0, 1.0, "",
+        "of two poses found over the same place, one whose outline leaks the object's colours by this share more is dropped (1: off)");
   r.add("search.background", &p.background,
         "v4r serve: search on a worker thread of its own with the newest image (false: on the cycle's thread)");
   detection::add_tag_params(r, p.tag, "search.tag");
@@ -54,6 +56,9 @@ void add_search_params(ParamRegistry& r, ObjectSearchParams& p) {
 ObjectSearch::ObjectSearch(const CycleParams& cycle, const ObjectSearchParams& p, const detection::DetectorParams& dp)
     : p_(p), dp_(dp), probe_(probe_params(cycle)) {
   hyp_.resize(static_cast<std::size_t>(std::clamp(p_.hypotheses, 1, 64)));
+  // Every pose one search frame can accept: the candidate, two tag poses, the restarts around
+  // two centres (at most 9 each) and the detector's hypotheses.
+  accepted_.reserve(1 + 2 + 2 * 9 + hyp_.size());
 }
 
 void ObjectSearch::add_object(const scene::Scene& scene, std::size_t object,
@@ -117,12 +122,34 @@ bool ObjectSearch::in_view_range(const Slot& s, const geometry::SE3& T) const {
   return false;
 }
 
-bool ObjectSearch::over_last_place(const Slot& s, const geometry::SE3& T) {
-  const Eigen::Vector3d c_last = s.T_leak * s.centre;
-  const Eigen::Vector3d c = T * s.centre;
-  const double d = c_last.norm();
-  if (d <= s.radius || c.norm() <= 1e-9) return true;  // (the camera inside the bounding sphere)
-  return c.normalized().dot(c_last / d) >= std::sqrt(1.0 - (s.radius / d) * (s.radius / d));
+bool over_place(const geometry::SE3& T_cam_obj, const geometry::SE3& T_other, const Eigen::Vector3d& centre,
+                double radius) {
+  const Eigen::Vector3d c_other = T_other * centre;
+  const Eigen::Vector3d c = T_cam_obj * centre;
+  const double d = c_other.norm();
+  if (d <= radius || c.norm() <= 1e-9) return true;  // (the camera inside the bounding sphere)
+  return c.normalized().dot(c_other / d) >= std::sqrt(1.0 - (radius / d) * (radius / d));
+}
+
+int choose_found_pose(std::span<const FoundPose> found, const NestingTest& t) {
+  const bool test = t.margin < 1.0 && t.leak_typical >= 0.0 && t.leak_typical <= t.leak_max_typical;
+  const auto nested = [&](const FoundPose& a) {
+    if (!test || a.leak_samples < t.leak_min_samples) return false;
+    for (const FoundPose& b : found)
+      if (b.leak_samples >= t.leak_min_samples && b.leak <= t.leak_typical + t.leak_margin && b.leak + t.margin < a.leak &&
+          over_place(a.T_cam_obj, b.T_cam_obj, t.centre, t.radius) && over_place(b.T_cam_obj, a.T_cam_obj, t.centre, t.radius))
+        return true;
+    return false;
+  };
+  int best = -1;
+  for (std::size_t k = 0; k < found.size(); ++k)
+    if ((best < 0 || found[k].rank > found[static_cast<std::size_t>(best)].rank) && !nested(found[k]))
+      best = static_cast<int>(k);
+  return best;
+}
+
+bool ObjectSearch::over_place(const Slot& s, const geometry::SE3& T, const geometry::SE3& T_other) {
+  return pipeline::over_place(T, T_other, s.centre, s.radius);
 }
 
 double ObjectSearch::refine(std::size_t object, const CameraImage& img, double stamp_s, geometry::SE3& T,
@@ -141,7 +168,7 @@ double ObjectSearch::refine(std::size_t object, const CameraImage& img, double s
   // was last tracked (centres' rays within its bounding radius), as after an occlusion.
   const StatusParams& sp = probe_.params().status;
   const bool leaks = slot.leak_typical >= 0.0 && slot.leak_typical <= sp.leak_max_typical && o.leak_samples >= sp.leak_min_samples && sp.leak_margin < 1.0 &&
-                     o.leak > slot.leak_typical + sp.leak_margin && over_last_place(slot, o.T_ref_obj);
+                     o.leak > slot.leak_typical + sp.leak_margin && over_place(slot, o.T_ref_obj, slot.T_leak);
   const bool ok = o.status == scene::TrackStatus::kTracking && o.evidence >= accept_evidence && !leaks &&
                   in_view_range(slot, o.T_ref_obj);
   // Rank: edge samples confirmed, times the square of their share, weighed down by the pose
@@ -154,6 +181,8 @@ double ObjectSearch::refine(std::size_t object, const CameraImage& img, double s
   const double rms = probe_.last_report().objects[object].rms_px;
   const double rank = matched * o.evidence * o.evidence / (1.0 + (rms / 1.5) * (rms / 1.5));
   last_evidence_ = o.evidence;
+  last_leak_ = o.leak;
+  last_leak_samples_ = o.leak_samples;
   T = o.T_ref_obj;
   o.status = scene::TrackStatus::kUninitialised;  // the probe object rests until the next hypothesis
   return ok ? rank : -1.0;
@@ -192,6 +221,7 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
   double best = -1.0, best_evidence = 0.0;
   geometry::SE3 T_best;
   bool best_local = false;
+  accepted_.clear();
   // The object's tag, if given and seen: a pose of the object must put it where it is seen.
   const detection::TagObservation tag = s.tag ? s.tag->detect(img.grey) : detection::TagObservation{};
   const auto consider = [&](geometry::SE3 T, bool local) {
@@ -211,6 +241,8 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
       T_best = T;
       best_local = local;
     }
+    if (e >= 0.0 && accepted_.size() < accepted_.capacity())
+      accepted_.push_back({T, e, last_evidence_, last_leak_, last_leak_samples_, local});
     return e;
   };
   // (1) Last frame's candidate, tracked on this frame: confirmed when it stays put.
@@ -267,6 +299,20 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
     if (r.status == detection::DetectionResult::Status::kOk) {
       const int n = std::min<int>(r.hypotheses, std::min<int>(p_.hypotheses, static_cast<int>(hyp_.size())));
       for (int k = 0; k < n; ++k) consider(hyp_[static_cast<std::size_t>(k)].T_cam_obj, false);
+    }
+  }
+  // The highest rank, unless it is nested in another accepted pose (choose_found_pose).
+  if (!accepted_.empty()) {
+    const StatusParams& sp = probe_.params().status;
+    const NestingTest t{p_.nested_leak_margin, s.leak_typical, sp.leak_max_typical, sp.leak_margin,
+                        sp.leak_min_samples,   s.centre,       s.radius};
+    const int k = choose_found_pose(accepted_, t);
+    if (k >= 0) {
+      const FoundPose& f = accepted_[static_cast<std::size_t>(k)];
+      best = f.rank;
+      best_evidence = f.evidence;
+      T_best = f.T_cam_obj;
+      best_local = f.local;
     }
   }
   rep.best_evidence = best >= 0.0 ? best_evidence : 0.0;

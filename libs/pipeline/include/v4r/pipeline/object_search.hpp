@@ -52,6 +52,13 @@ struct ObjectSearchParams {
   /// within these limits (consistency over 2 frames).
   double confirm_translation_m = 0.03;
   double confirm_rotation_deg = 10.0;
+  /// Of two poses accepted on one search frame over the same place (each centre within the
+  /// model's bounding radius of the other's ray), one whose outline leaks the object's own
+  /// colours (features::SilhouetteContrast) by this share more than the other's is dropped: its
+  /// outline lies on the object's faces, a pose nested inside the real one (a textured box
+  /// fitted smaller and farther, its top edge on a band of its texture). Needs
+  /// status.leak_min_samples colour samples on both; 1: off.
+  double nested_leak_margin = 0.2;
   /// `v4r serve`: the expensive search runs on a worker thread of its own, on a copy of the
   /// newest camera-0 image (pipeline::BackgroundSearch), so that the other objects' cycles keep
   /// their budget; false: on the cycle's thread after each cycle, as `v4r track` always does.
@@ -101,6 +108,43 @@ enum class SearchStep {
 /// then (else the pose held while lost, velocity unknown). Allocates nothing.
 SearchStep search_step(const ObjectSearchParams& p, scene::Scene& scene, std::size_t object, int& lost_streak,
                        LastSeen& last);
+
+/// \brief A pose one search frame accepted, with what the choice among them needs.
+struct FoundPose {
+  geometry::SE3 T_cam_obj;
+  double rank = 0.0;      ///< edge samples the image confirms, weighed (the search's ranking)
+  double evidence = 0.0;  ///< share of the projected model's edge samples confirmed
+  double leak = -1.0;     ///< share of its outline's outside colour samples like the object's (< 0: none)
+  int leak_samples = 0;   ///< colour samples of the leak
+  bool local = false;     ///< a restart around the last pose (else a candidate, tag or detector pose)
+};
+
+/// \brief What the choice among found poses knows of the object (see choose_found_pose).
+struct NestingTest {
+  double margin = 1.0;             ///< ObjectSearchParams::nested_leak_margin (1: off)
+  double leak_typical = -1.0;      ///< the object's silhouette leak while tracked (< 0: unknown, off)
+  double leak_max_typical = 0.25;  ///< StatusParams::leak_max_typical
+  double leak_margin = 0.15;       ///< StatusParams::leak_margin
+  int leak_min_samples = 12;       ///< StatusParams::leak_min_samples
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();  ///< the model's bounding sphere, object frame
+  double radius = 0.0;                               ///< ... and its radius, m
+};
+
+/// True when T_cam_obj puts the bounding sphere's centre within its radius, as seen from the
+/// camera, of where T_other puts it (their rays closer than the radius at T_other's distance).
+[[nodiscard]] bool over_place(const geometry::SE3& T_cam_obj, const geometry::SE3& T_other,
+                              const Eigen::Vector3d& centre, double radius);
+
+/// The found pose a search frame takes: the highest rank, except that a pose nested in another
+/// gives way to it however many edge samples it explains. Nested: both over the same place
+/// (over_place both ways), its outline leaks the object's colours by more than t.margin over the
+/// other's, and the other leaks about as little as the object did while tracked (at most
+/// leak_typical + leak_margin); each from leak_min_samples colour samples. Only for an object that
+/// stood out from its surroundings while tracked (leak_typical in [0, leak_max_typical]): its
+/// outline then lay on the background, a nested pose's lies on the object's own faces (a
+/// textured box fitted smaller and farther, an edge on a band of its texture). Returns the index
+/// in `found`, -1 when it is empty. Allocates nothing.
+[[nodiscard]] int choose_found_pose(std::span<const FoundPose> found, const NestingTest& t);
 
 /// Sets a pose the search found and confirmed: T_cam_obj (camera 0's frame) becomes the object's
 /// pose (Scene::set_pose), `tracking`, with `evidence` as its evidence and quality.
@@ -188,8 +232,8 @@ class ObjectSearch {
   /// T_cam_obj (or one of its symmetric equivalents) within the slot's view range and margin.
   [[nodiscard]] bool in_view_range(const Slot& s, const geometry::SE3& T) const;
   /// T_cam_obj puts the object's centre within its bounding radius (as seen from the camera) of
-  /// where it was last tracked (T_leak).
-  [[nodiscard]] static bool over_last_place(const Slot& s, const geometry::SE3& T);
+  /// where T_other puts it.
+  [[nodiscard]] static bool over_place(const Slot& s, const geometry::SE3& T, const geometry::SE3& T_other);
   /// Refines T (camera frame) with the private cycle; returns its rank (edge samples the image
   /// confirms) if accepted, else -1; its edge evidence (share) in last_evidence_.
   double refine(std::size_t object, const CameraImage& img, double stamp_s, geometry::SE3& T, double accept_evidence);
@@ -202,6 +246,9 @@ class ObjectSearch {
   std::vector<SearchReport> reports_;
   std::vector<detection::Hypothesis> hyp_;
   double last_evidence_ = 0.0;
+  double last_leak_ = -1.0;       // the last refined pose's silhouette leak (-1: no colour samples)
+  int last_leak_samples_ = 0;
+  std::vector<FoundPose> accepted_;  // this frame's accepted poses (capacity fixed at construction)
 };
 
 }  // namespace v4r::pipeline
