@@ -50,14 +50,14 @@ struct Row {
 /// Tracks `truth` rendered with `ro`; frames whose truth is empty (nullopt) render the
 /// background only (the object out of view).
 std::vector<Row> run(const ObjectCase& oc, const std::vector<geometry::SE3>& truth, synth::RenderOptions ro,
-                     const std::vector<bool>& absent = {}) {
+                     const std::vector<bool>& absent = {}, const pipeline::CycleParams& cp = {}) {
   auto model = load(oc);
   const geometry::PinholeCamera cam = synth::default_camera();
   ro.colour = true;
   ro.cycle_frames = static_cast<int>(truth.size());
   synth::Renderer renderer(cam, ro);
   renderer.set_scene_reference(*model, truth);
-  pipeline::SingleObjectTracker tracker(model, cam);
+  pipeline::SingleObjectTracker tracker(model, cam, cp);
   tracker.set_pose(perturbed(truth[0]));
   std::vector<Row> rows;
   cv::Mat grey;
@@ -84,41 +84,78 @@ std::vector<geometry::SE3> moving(const ObjectCase& oc, synth::Condition c, int 
 }  // namespace
 
 // Translation error per camera axis over the reported sigma, every frame from the 5th that is
-// reported tracking or degraded, over objects and conditions (clutter, occlusion, noise). Motion
-// blur is left out: it shifts edges along the motion by more than the fit's sigma says (our
-// renders: median |e|/sigma about 3.5), a known gap.
-TEST(HonestState, ReportedSigmaMatchesTheTranslationError) {
-  const synth::Condition conditions[] = {synth::Condition::kRegular, synth::Condition::kNoise,
-                                         synth::Condition::kClutter, synth::Condition::kOcclusion};
-  std::vector<double> z;
-  for (const ObjectCase& oc : kObjects)
-    for (synth::Condition c : conditions) {
-      const auto rows = run(oc, moving(oc, c, 60), synth::options_for(c));
-      std::vector<double> zc;
+// reported tracking or degraded, per condition (every one of our renders' conditions) over the
+// objects: within 3 sigma on 90 % of axis-frames and a median |e|/sigma in 0.4..1.2 (a calibrated
+// Gaussian gives 0.67). Under motion blur the renderer exposes frame i from pose i-1 to pose i,
+// so the image shows the object half a frame before the frame's pose: the tracker is told so
+// (filter.image_delay) and reports the pose at the frame's time. (The flange in clutter, from
+// this test's start, is lost without the search and adds no rows there.)
+TEST(HonestState, ReportedSigmaMatchesTheTranslationErrorUnderEveryCondition) {
+  std::size_t total = 0;
+  for (synth::Condition c : synth::all_conditions()) {
+    const synth::RenderOptions ro = synth::options_for(c);
+    pipeline::CycleParams cp;
+    if (ro.blur_samples > 1) cp.image_delay_s = 0.5 * ro.blur_exposure * cp.frame_interval_s;
+    std::vector<double> z;
+    for (const ObjectCase& oc : kObjects) {
+      const auto rows = run(oc, moving(oc, c, 60), ro, {}, cp);
+      std::vector<double> zo;
       for (std::size_t i = 5; i < rows.size(); ++i) {
         const Row& r = rows[i];
         if (r.status != scene::TrackStatus::kTracking && r.status != scene::TrackStatus::kDegraded) continue;
         for (int a = 0; a < 3; ++a) {
           const double s = std::sqrt(r.cov(a, a));
           ASSERT_GT(s, 0.0) << oc.name << " " << synth::condition_name(c) << " frame " << i;
-          zc.push_back(std::abs(r.est.translation()[a] - r.truth.translation()[a]) / s);
+          zo.push_back(std::abs(r.est.translation()[a] - r.truth.translation()[a]) / s);
         }
       }
-      std::sort(zc.begin(), zc.end());
-      if (!zc.empty())
-        fmt::print("[{} {}] axis-frames {} median |e|/sigma {:.2f}\n", oc.name, synth::condition_name(c), zc.size(),
-                   zc[zc.size() / 2]);
-      z.insert(z.end(), zc.begin(), zc.end());
+      std::sort(zo.begin(), zo.end());
+      if (!zo.empty())
+        fmt::print("[{} {}] axis-frames {} median |e|/sigma {:.2f}\n", oc.name, synth::condition_name(c), zo.size(),
+                   zo[zo.size() / 2]);
+      z.insert(z.end(), zo.begin(), zo.end());
     }
-  ASSERT_GT(z.size(), 1000u);
-  std::sort(z.begin(), z.end());
-  const double within3 =
-      static_cast<double>(std::count_if(z.begin(), z.end(), [](double v) { return v <= 3.0; })) / z.size();
-  const double median = z[z.size() / 2];
-  fmt::print("all: {} axis-frames, within 3 sigma {:.3f}, median |e|/sigma {:.3f}\n", z.size(), within3, median);
-  EXPECT_GE(within3, 0.90);
-  EXPECT_GE(median, 0.4);
-  EXPECT_LE(median, 1.2);
+    ASSERT_GT(z.size(), 300u) << synth::condition_name(c);
+    total += z.size();
+    std::sort(z.begin(), z.end());
+    const double within3 =
+        static_cast<double>(std::count_if(z.begin(), z.end(), [](double v) { return v <= 3.0; })) / z.size();
+    const double median = z[z.size() / 2];
+    fmt::print("{}: {} axis-frames, within 3 sigma {:.3f}, median |e|/sigma {:.3f}\n", synth::condition_name(c), z.size(),
+               within3, median);
+    EXPECT_GE(within3, 0.90) << synth::condition_name(c);
+    EXPECT_GE(median, 0.4) << synth::condition_name(c);
+    EXPECT_LE(median, 1.2) << synth::condition_name(c);
+  }
+  EXPECT_GT(total, 4000u);
+}
+
+// Under motion blur that ends at the frame's pose, a tracker not told of it reports the pose of
+// the exposure's middle: half a frame behind, far outside its sigma. Told (filter.image_delay),
+// it moves the pose on to the frame's time with its velocity.
+TEST(HonestState, AnImageDelayMovesThePoseOnToTheFramesTime) {
+  const ObjectCase& oc = kObjects[0];
+  const synth::RenderOptions ro = synth::options_for(synth::Condition::kBlur);
+  const auto truth = moving(oc, synth::Condition::kBlur, 40);
+  const auto median_error = [&](double delay_s) {
+    pipeline::CycleParams cp;
+    cp.image_delay_s = delay_s;
+    const auto rows = run(oc, truth, ro, {}, cp);
+    std::vector<double> e;
+    for (std::size_t i = 5; i < rows.size(); ++i)
+      e.push_back((rows[i].est.translation() - rows[i].truth.translation()).norm());
+    std::sort(e.begin(), e.end());
+    return e[e.size() / 2];
+  };
+  double step = 0.0;
+  for (std::size_t i = 5; i < truth.size(); ++i) step += (truth[i].translation() - truth[i - 1].translation()).norm();
+  step /= static_cast<double>(truth.size() - 5);
+  const double half_frame = 0.5 * pipeline::CycleParams{}.frame_interval_s;
+  const double without = median_error(0.0), with = median_error(half_frame);
+  fmt::print("mean step {:.2f} mm; median error without the delay {:.2f} mm, with {:.2f} mm\n", 1e3 * step, 1e3 * without,
+             1e3 * with);
+  EXPECT_GT(without, 0.3 * step) << "half a frame behind";
+  EXPECT_LT(with, 0.5 * without);
 }
 
 // The object leaves the view for 20 frames: none of them says tracking, and the sigma grows past

@@ -87,6 +87,7 @@ ObjectMeasurement combine_solves(std::span<const ObjectSolve> solves) {
 void update_object(scene::Object& obj, const ObjectMeasurement& m, const CycleParams& p, ObjectReport& rep,
                    double stamp_s) {
   const bool was_lost = obj.status == scene::TrackStatus::kLost;
+  const double frame_dt = obj.last_stamp >= 0.0 && stamp_s > obj.last_stamp ? stamp_s - obj.last_stamp : p.frame_interval_s;
   obj.last_stamp = stamp_s;  // (the filter's time update for this frame was done in process())
   // Status from the image: the share of the projected model's edge samples that the image
   // confirms, at the views' measured poses.
@@ -155,6 +156,15 @@ void update_object(scene::Object& obj, const ObjectMeasurement& m, const CyclePa
       obj.covariance *= std::max(1.0, obj.consistency);
     } else {
       obj.consistency_frames = 0;
+    }
+    // The image shows the object image_delay_s before the stamp: reported at the stamp, moved on
+    // with the filter's velocity; the covariance grows as if that velocity came from the last two
+    // measurements, (R_k + R_k-1) / dt^2 with R_k-1 about R_k. (The filter's own velocity
+    // covariance, from its process noise of 2 m/s^2, put the true error at a tenth of a sigma.)
+    if (p.use_filter && p.image_delay_s > 0.0 && obj.filter.initialised()) {
+      const double d = p.image_delay_s;
+      obj.T_ref_obj = geometry::SE3::exp(obj.filter.velocity() * d) * obj.T_ref_obj;
+      obj.covariance *= 1.0 + 2.0 * (d / frame_dt) * (d / frame_dt);
     }
     obj.measured = ratio >= p.degraded_ratio && !prior_used ? scene::TrackStatus::kTracking : scene::TrackStatus::kDegraded;
     rep.prior_used = prior_used;

@@ -145,6 +145,8 @@ ParamRegistry make_registry(CycleParams& p) {
         "weight of each frame's pose jitter (chi^2 / 6 of the third difference of 4 measured poses) in the running mean that scales the reported covariance (0: off)");
   r.add("filter.consistency_max_scale", &p.consistency_max_scale, 1.0, 1e6, "",
         "cap of one frame's term in that mean");
+  r.add("filter.image_delay", &p.image_delay_s, 0.0, 1.0, "s",
+        "the image shows the object this long before its stamp (half the exposure when stamps mark its end); the pose is reported at the stamp");
   r.add("filter.rest_velocity_chi2", &p.rest_velocity_chi2, 0.0, 1e6, "",
         "smoother: at rest below this velocity chi^2 (6 dof) of the tracking filter (averages), moving above (reports the measurement)");
   r.add("filter.rest_velocity_sigma", &p.rest_velocity_sigma, 0.0, 10.0, "m/s", "smoother: velocity uncertainty of an object at rest");

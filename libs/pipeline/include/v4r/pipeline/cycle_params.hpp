@@ -84,7 +84,7 @@ struct CycleParams {
   double line_sigma_px = 0.5;           ///< a-priori noise of a tracked line, pixels
   /// Floor of the a-posteriori scale of the reported covariance (the solver's min_sigma0 floors
   /// the one the filter uses, higher to keep it cautious).
-  double report_min_sigma0 = 0.25;
+  double report_min_sigma0 = 0.1;
   /// The reported covariance also covers the solve's sandwich covariance (each observation's
   /// spread taken from its own residual, PoseResult::sandwich_covariance) where that is larger.
   bool report_sandwich = true;
@@ -143,6 +143,12 @@ struct CycleParams {
   /// scatter of the poses shows it.
   double consistency_rate = 0.1;
   double consistency_max_scale = 30.0;
+  /// Seconds by which the image shows the object before its time stamp: half the exposure when
+  /// stamps mark the end of the exposure (0: its middle, or a short exposure). A blurred image is
+  /// the object's average over the exposure, so a measured pose is that of the exposure's middle;
+  /// the reported pose is moved on to the stamp with the filter's velocity, exp(v delay) T, and
+  /// its covariance grows by delay^2 times the velocity's.
+  double image_delay_s = 0.0;
   double rest_velocity_sigma = 1e-4;          ///< m/s: velocity of an object at rest
   double rest_angular_velocity_sigma = 1e-3;  ///< rad/s: angular velocity of an object at rest
   double frame_interval_s = 1.0 / 30.0;  ///< seconds between frames when no time stamps are given
