@@ -218,9 +218,6 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
   const auto t0 = Clock::now();
   rep.searched = true;
   ++s.search_frames;
-  double best = -1.0, best_evidence = 0.0;
-  geometry::SE3 T_best;
-  bool best_local = false;
   accepted_.clear();
   // The object's tag, if given and seen: a pose of the object must put it where it is seen.
   const detection::TagObservation tag = s.tag ? s.tag->detect(img.grey) : detection::TagObservation{};
@@ -235,21 +232,14 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
       e = -1.0;
       ++rep.tag_vetoed;
     }
-    if (e > best) {
-      best = e;
-      best_evidence = last_evidence_;
-      T_best = T;
-      best_local = local;
-    }
     if (e >= 0.0 && accepted_.size() < accepted_.capacity())
       accepted_.push_back({T, e, last_evidence_, last_leak_, last_leak_samples_, local});
     return e;
   };
   // (1) Last frame's candidate, tracked on this frame: confirmed when it stays put.
   if (s.have_candidate) {
-    geometry::SE3 T = s.T_candidate;
-    const double e = consider(T, s.candidate_local);
-    T = T_best;
+    const double e = consider(s.T_candidate, s.candidate_local);
+    const geometry::SE3 T = e >= 0.0 ? accepted_.back().T_cam_obj : s.T_candidate;  // refined
     const bool close = e >= 0.0 && (T.translation() - s.T_candidate.translation()).norm() <= p_.confirm_translation_m &&
                        geometry::rotation_angle_between(T, s.T_candidate) <= p_.confirm_rotation_deg * kDeg;
     if (close) {
@@ -261,7 +251,7 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
       s.stamp_last = -1.0;
       s.search_frames = 0;
       rep.found = rep.locked = true;
-      rep.best_evidence = best_evidence;
+      rep.best_evidence = accepted_.back().evidence;
       rep.search_ms = ms_between(t0, Clock::now());
       return rep;
     }
@@ -302,24 +292,17 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
     }
   }
   // The highest rank, unless it is nested in another accepted pose (choose_found_pose).
-  if (!accepted_.empty()) {
-    const StatusParams& sp = probe_.params().status;
-    const NestingTest t{p_.nested_leak_margin, s.leak_typical, sp.leak_max_typical, sp.leak_margin,
-                        sp.leak_min_samples,   s.centre,       s.radius};
-    const int k = choose_found_pose(accepted_, t);
-    if (k >= 0) {
-      const FoundPose& f = accepted_[static_cast<std::size_t>(k)];
-      best = f.rank;
-      best_evidence = f.evidence;
-      T_best = f.T_cam_obj;
-      best_local = f.local;
-    }
-  }
-  rep.best_evidence = best >= 0.0 ? best_evidence : 0.0;
-  s.have_candidate = best >= 0.0;
+  const StatusParams& sp = probe_.params().status;
+  const NestingTest t{p_.nested_leak_margin, s.leak_typical, sp.leak_max_typical, sp.leak_margin,
+                      sp.leak_min_samples,   s.centre,       s.radius};
+  const int k = choose_found_pose(accepted_, t);
+  s.have_candidate = k >= 0;
+  rep.best_evidence = 0.0;
   if (s.have_candidate) {
-    s.T_candidate = T_best;
-    s.candidate_local = best_local;
+    const FoundPose& f = accepted_[static_cast<std::size_t>(k)];
+    s.T_candidate = f.T_cam_obj;
+    s.candidate_local = f.local;
+    rep.best_evidence = f.evidence;
     rep.found = true;
   }
   rep.cancelled = rep.cancelled || stop.stop_requested();
