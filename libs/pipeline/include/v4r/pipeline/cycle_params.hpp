@@ -147,7 +147,8 @@ struct CycleParams {
   /// stamps mark the end of the exposure (0: its middle, or a short exposure). A blurred image is
   /// the object's average over the exposure, so a measured pose is that of the exposure's middle;
   /// the reported pose is moved on to the stamp with the filter's velocity, exp(v delay) T, and
-  /// its covariance grows by delay^2 times the velocity's.
+  /// its covariance is multiplied by 1 + 2 (delay / dt)^2 (a velocity from the last two
+  /// measurements, dt apart).
   double image_delay_s = 0.0;
   double rest_velocity_sigma = 1e-4;          ///< m/s: velocity of an object at rest
   double rest_angular_velocity_sigma = 1e-3;  ///< rad/s: angular velocity of an object at rest
