@@ -132,6 +132,7 @@ LineTrackerParams sanitize(LineTrackerParams p) {
   if (!(p.learning_rate > 0.0)) p.learning_rate = def.learning_rate;
   p.learning_rate = std::min(p.learning_rate, 1.0);
   if (!(p.learn_min_inlier_ratio >= 0.0)) p.learn_min_inlier_ratio = def.learn_min_inlier_ratio;
+  if (!(p.outside_distinct_k >= 0.0) || !std::isfinite(p.outside_distinct_k)) p.outside_distinct_k = def.outside_distinct_k;
   return p;
 }
 
@@ -288,7 +289,7 @@ bool LineTracker::appearance_ok(int row, int col) const {
     if (!c.active) continue;
     float grey = 0.0f;
     const bool has_grey = grey_band(row, col, s, &grey);
-    if (has_grey && std::abs(grey - c.mean[0]) > c.tol[0]) return false;
+    if (has_grey && !chroma_only_ && std::abs(grey - c.mean[0]) > c.tol[0]) return false;
     if (!c.chroma) continue;
     float rg[2];
     if (!chroma_band(row, col, s, rg)) continue;
@@ -298,69 +299,100 @@ bool LineTracker::appearance_ok(int row, int col) const {
     if (std::abs(rg[0] - c.mean[1]) > c.tol[1] * scale || std::abs(rg[1] - c.mean[2]) > c.tol[2] * scale)
       return false;
   }
+  // A silhouette candidate with the object's own colour outside it is a texture line inside.
+  if (outside_check_.active) {
+    const OutsideCheck& o = outside_check_;
+    float rg[2];
+    if (chroma_band(row, col, o.side, rg) && std::abs(rg[0] - o.mean[0]) <= o.tol[0] &&
+        std::abs(rg[1] - o.mean[1]) <= o.tol[1])
+      return false;
+  }
   return true;
 }
 
+void LineTracker::prepare_outside_check(const LineTrackState& state) {
+  outside_check_ = OutsideCheck{};
+  if (!(p_.outside_distinct_k > 0.0) || colour_ == nullptr || state.outside_side < 0) return;
+  const SideCheck& obj = check_[1 - state.outside_side];
+  const SideAppearance& out = state.outside;
+  if (!obj.active || !obj.chroma || !out.learned || out.channels != 3) return;
+  if (!std::isfinite(out.mean[1]) || !std::isfinite(out.mean[2])) return;
+  // Active only where the outside's learned colour stood apart from the object side's.
+  const double k = p_.outside_distinct_k;
+  const bool distinct =
+      std::abs(out.mean[1] - obj.mean[1]) >= k * obj.tol[1] || std::abs(out.mean[2] - obj.mean[2]) >= k * obj.tol[2];
+  if (!distinct) return;
+  outside_check_.active = true;
+  outside_check_.side = state.outside_side;
+  for (int c = 0; c < 2; ++c) {
+    outside_check_.mean[c] = obj.mean[c + 1];
+    outside_check_.tol[c] = obj.tol[c + 1];
+  }
+}
+
 void LineTracker::learn_sides(LineTrackState& state, const LineMeasurement& m, bool reset) const {
+  for (int s = 0; s < 2; ++s)
+    if (state.side[s].is_object) learn_band(state.side[s], s, m, reset);
+  // A silhouette edge's other side (outside_distinct_k): learned alongside.
+  if (p_.outside_distinct_k > 0.0 && state.outside_side >= 0) learn_band(state.outside, state.outside_side, m, reset);
+}
+
+void LineTracker::learn_band(SideAppearance& a, int s, const LineMeasurement& m, bool reset) const {
   const int count = m.inliers;
-  for (int s = 0; s < 2; ++s) {
-    SideAppearance& a = state.side[s];
-    if (!a.is_object) continue;
-    // Band means of the inliers: frame mean and variance per channel.
-    double sum[3] = {0.0, 0.0, 0.0}, sq[3] = {0.0, 0.0, 0.0};
-    int n_grey = 0, n_chroma = 0;
-    for (int k = 0; k < count; ++k) {
-      const Edgel& e = edgels_[inlier_idx_[k]];
-      float grey = 0.0f;
-      if (!grey_band(e.row, e.col, s, &grey)) continue;
-      sum[0] += grey;
-      sq[0] += static_cast<double>(grey) * grey;
-      ++n_grey;
-      float rg[2];
-      if (!chroma_band(e.row, e.col, s, rg)) continue;
-      for (int c = 0; c < 2; ++c) {
-        sum[c + 1] += rg[c];
-        sq[c + 1] += static_cast<double>(rg[c]) * rg[c];
-      }
-      ++n_chroma;
+  // Band means of the inliers: frame mean and variance per channel.
+  double sum[3] = {0.0, 0.0, 0.0}, sq[3] = {0.0, 0.0, 0.0};
+  int n_grey = 0, n_chroma = 0;
+  for (int k = 0; k < count; ++k) {
+    const Edgel& e = edgels_[inlier_idx_[k]];
+    float grey = 0.0f;
+    if (!grey_band(e.row, e.col, s, &grey)) continue;
+    sum[0] += grey;
+    sq[0] += static_cast<double>(grey) * grey;
+    ++n_grey;
+    float rg[2];
+    if (!chroma_band(e.row, e.col, s, rg)) continue;
+    for (int c = 0; c < 2; ++c) {
+      sum[c + 1] += rg[c];
+      sq[c + 1] += static_cast<double>(rg[c]) * rg[c];
     }
-    if (n_grey < kMinInliers) continue;
-    const int channels = n_chroma >= kMinInliers ? 3 : 1;
-    float mean[3] = {0.0f, 0.0f, 0.0f}, var[3] = {0.0f, 0.0f, 0.0f};
-    for (int c = 0; c < channels; ++c) {
-      const int n = c == 0 ? n_grey : n_chroma;
-      const double mu = sum[c] / n;
-      mean[c] = static_cast<float>(mu);
-      var[c] = static_cast<float>(std::max(0.0, sq[c] / n - mu * mu));
+    ++n_chroma;
+  }
+  if (n_grey < kMinInliers) return;
+  const int channels = n_chroma >= kMinInliers ? 3 : 1;
+  float mean[3] = {0.0f, 0.0f, 0.0f}, var[3] = {0.0f, 0.0f, 0.0f};
+  for (int c = 0; c < channels; ++c) {
+    const int n = c == 0 ? n_grey : n_chroma;
+    const double mu = sum[c] / n;
+    mean[c] = static_cast<float>(mu);
+    var[c] = static_cast<float>(std::max(0.0, sq[c] / n - mu * mu));
+  }
+  if (reset || !a.learned) {
+    // Learned from scratch only from a convincing fit.
+    if (m.inlier_ratio < p_.learn_min_inlier_ratio) return;
+    a.learned = true;
+    a.channels = channels;
+    for (int c = 0; c < 3; ++c) {
+      a.mean[c] = mean[c];
+      a.var[c] = var[c];
     }
-    if (reset || !a.learned) {
-      // Learned from scratch only from a convincing fit.
-      if (m.inlier_ratio < p_.learn_min_inlier_ratio) continue;
-      a.learned = true;
-      a.channels = channels;
-      for (int c = 0; c < 3; ++c) {
-        a.mean[c] = mean[c];
-        a.var[c] = var[c];
-      }
-      continue;
-    }
-    // Running mean and variance: the mixture of the old estimate (weight 1 - r) and this frame's
-    // (weight r), var = (1 - r) var_old + r var_frame + r (1 - r) (mean_frame - mean_old)^2.
-    // A frame without colour updates the grey level and keeps the chromaticity; the first frame
-    // with colour of a grey-learned side adds it.
-    const float r = static_cast<float>(p_.learning_rate);
-    const int blend = std::min(channels, a.channels == 3 ? 3 : 1);
-    for (int c = 0; c < blend; ++c) {
-      const float delta = mean[c] - a.mean[c];
-      a.mean[c] += r * delta;
-      a.var[c] = (1.0f - r) * a.var[c] + r * var[c] + r * (1.0f - r) * delta * delta;
-    }
-    if (channels == 3 && a.channels != 3) {
-      a.channels = 3;
-      for (int c = 1; c < 3; ++c) {
-        a.mean[c] = mean[c];
-        a.var[c] = var[c];
-      }
+    return;
+  }
+  // Running mean and variance: the mixture of the old estimate (weight 1 - r) and this frame's
+  // (weight r), var = (1 - r) var_old + r var_frame + r (1 - r) (mean_frame - mean_old)^2.
+  // A frame without colour updates the grey level and keeps the chromaticity; the first frame
+  // with colour of a grey-learned side adds it.
+  const float r = static_cast<float>(p_.learning_rate);
+  const int blend = std::min(channels, a.channels == 3 ? 3 : 1);
+  for (int c = 0; c < blend; ++c) {
+    const float delta = mean[c] - a.mean[c];
+    a.mean[c] += r * delta;
+    a.var[c] = (1.0f - r) * a.var[c] + r * var[c] + r * (1.0f - r) * delta * delta;
+  }
+  if (channels == 3 && a.channels != 3) {
+    a.channels = 3;
+    for (int c = 1; c < 3; ++c) {
+      a.mean[c] = mean[c];
+      a.var[c] = var[c];
     }
   }
 }
@@ -657,15 +689,9 @@ LineMeasurement LineTracker::track(const image::ImageView& img, const Segment2& 
         inside[j] = (img.contains(x0, y0) && img.contains(x2, y2)) ? 1 : 0;
       }
     }
-
-    // 2. Gradient across: central difference of the smoothed row (grey levels per pixel).
-    float* g = &grad_[static_cast<std::size_t>(i) * cols];
-    g[0] = 0.0f;
-    g[cols - 1] = 0.0f;
-    for (int j = 1; j < cols - 1; ++j) g[j] = 0.5f * (prow[j + 1] - prow[j - 1]);
   }
   if (valid_rows < kMinInliers) return m;
-  thr_ = window_threshold(p_, grad_.data(), row_valid_.data(), col_inside_.data(), rows, cols, colour_row_.data());
+  grey_gradient();
 
   // Appearance checks of the learned object sides (paper 4.1).
   bool cues = false;
@@ -694,26 +720,67 @@ LineMeasurement LineTracker::track(const image::ImageView& img, const Segment2& 
     cues = true;
   }
 
+  // A silhouette edge (one object side) learns its other side too; a change of which side that
+  // is forgets what was learned.
+  const int outside = state.side[0].is_object != state.side[1].is_object ? (state.side[0].is_object ? 1 : 0) : -1;
+  if (outside != state.outside_side) {
+    state.outside = SideAppearance{};
+    state.outside_side = outside;
+  }
+  prepare_outside_check(state);
+
   // 3-5. Edgels, RANSAC, measurement on the grey gradient; on a colour image, when that finds
-  // no edge, again on the colour gradient (an edge between surfaces of equal brightness).
+  // no edge, again on the colour gradient (an edge between surfaces of equal brightness). The
+  // cues come first: a search whose learned cues leave no edge is repeated without them (a
+  // fallback). With colour_before_fallback, both gradients are searched with the cues before
+  // either is searched without.
   m.threshold = thr_;
-  detect(want, cues, valid_rows, m);
-  if (!m.found && colour_ != nullptr && p_.use_colour_gradient) {
+  const bool colour_search = colour_ != nullptr && p_.use_colour_gradient;
+  // The colour gradient's search; true (and m set, the state updated) when it finds the edge.
+  auto colour_pass = [&](bool with_cues, bool allow_fallback, bool after_fallback) {
     float axis[3];
-    if (colour_gradient(state, axis)) {
-      LineMeasurement mc;
-      const int want_c = state.colour_polarity > 0 ? 1 : (state.colour_polarity < 0 ? -1 : 0);
-      detect(want_c, cues, valid_rows, mc);
-      if (mc.found) {
-        mc.colour_gradient = true;
-        mc.threshold = thr_;
-        state.colour_polarity = mc.polarity;
-        for (int c = 0; c < 3; ++c) state.colour_axis[c] = axis[c];
-        m = mc;
-        if (p_.use_cues) learn_sides(state, m, m.cue_fallback);
-        return m;
+    if (!colour_gradient(state, axis)) return false;
+    LineMeasurement mc;
+    mc.threshold = thr_;
+    const int want_c = state.colour_polarity > 0 ? 1 : (state.colour_polarity < 0 ? -1 : 0);
+    detect(want_c, with_cues, valid_rows, mc, allow_fallback);
+    if (!mc.found) return false;
+    mc.colour_gradient = true;
+    if (after_fallback) {
+      mc.cue_fallback = true;
+      mc.cue_rejected = m.cue_rejected;
+    }
+    state.colour_polarity = mc.polarity;
+    for (int c = 0; c < 3; ++c) state.colour_axis[c] = axis[c];
+    m = mc;
+    if (p_.use_cues) learn_sides(state, m, m.cue_fallback);
+    return true;
+  };
+  if (cues && colour_search && p_.colour_before_fallback) {
+    detect(want, true, valid_rows, m, false);
+    if (!m.found) {
+      if (colour_pass(true, false, false)) return m;
+      // Neither gradient shows an edge that passes the cues: both again with the chromaticity
+      // check only (fallback_keeps_chroma), or without any check.
+      const bool keep_chroma = p_.fallback_keeps_chroma && (check_[0].chroma || check_[1].chroma);
+      const int rejected = m.cue_rejected;
+      for (int stage = keep_chroma ? 0 : 1; stage < 2 && !m.found; ++stage) {
+        if (stage == 1 && keep_chroma && !p_.fallback_unchecked) break;
+        grey_gradient();
+        m = LineMeasurement{};
+        m.threshold = thr_;
+        chroma_only_ = stage == 0;
+        detect(want, stage == 0, valid_rows, m, false);
+        m.cue_fallback = true;
+        m.cue_rejected = rejected;
+        const bool found_colour = !m.found && colour_pass(stage == 0, false, true);
+        chroma_only_ = false;
+        if (found_colour) return m;
       }
     }
+  } else {
+    detect(want, cues, valid_rows, m, true);
+    if (!m.found && colour_search && colour_pass(cues, true, false)) return m;
   }
   if (!m.found) return m;
   state.polarity = m.polarity;
@@ -722,10 +789,24 @@ LineMeasurement LineTracker::track(const image::ImageView& img, const Segment2& 
   return m;
 }
 
-void LineTracker::detect(int want, bool cues, int valid_rows, LineMeasurement& m) {
+void LineTracker::grey_gradient() {
+  // Gradient across: central difference of the smoothed row (grey levels per pixel).
+  const int cols = cols_;
+  for (int i = 0; i < p_.rows; ++i) {
+    if (!row_valid_[i]) continue;
+    const float* prow = &patch_[static_cast<std::size_t>(i) * cols];
+    float* g = &grad_[static_cast<std::size_t>(i) * cols];
+    g[0] = 0.0f;
+    g[cols - 1] = 0.0f;
+    for (int j = 1; j < cols - 1; ++j) g[j] = 0.5f * (prow[j + 1] - prow[j - 1]);
+  }
+  thr_ = window_threshold(p_, grad_.data(), row_valid_.data(), col_inside_.data(), p_.rows, cols, colour_row_.data());
+}
+
+void LineTracker::detect(int want, bool cues, int valid_rows, LineMeasurement& m, bool allow_fallback) {
   // With cues, the candidates passing the check must still be able to make a found edge; else
   // (the light changed abruptly, the face is shadowed, ...) the edge is searched again without
-  // the check, and the result says so.
+  // the check (when allow_fallback), and the result says so.
   const float threshold = m.threshold;
   bool fallback = false;
   if (cues) {
@@ -736,13 +817,27 @@ void LineTracker::detect(int want, bool cues, int valid_rows, LineMeasurement& m
     for (int i = 0; i < p_.rows; ++i) rows_with += row_count_[i] > 0 ? 1 : 0;
     const int need = std::max(kMinInliers, static_cast<int>(std::ceil(p_.min_inlier_ratio * valid_rows)));
     if (rows_with >= need) fit_pool(pool_size, valid_rows, m);
-    if (!m.found) {
+    if (!m.found) last_inliers_.clear();
+    if (!m.found && allow_fallback) {
       fallback = true;
       m = LineMeasurement{};
       m.cue_rejected = rejected;
       m.cue_fallback = true;
       m.threshold = threshold;
       last_inliers_.clear();
+      // Colour: the light changes a face's brightness, hardly its chromaticity, which the
+      // fallback keeps checking (fallback_keeps_chroma).
+      if (p_.fallback_keeps_chroma && (check_[0].chroma || check_[1].chroma)) {
+        chroma_only_ = true;
+        fit_pool(extract_edgels(want, true, nullptr), valid_rows, m);
+        chroma_only_ = false;
+        if (m.found || !p_.fallback_unchecked) return;
+        m = LineMeasurement{};
+        m.cue_rejected = rejected;
+        m.cue_fallback = true;
+        m.threshold = threshold;
+        last_inliers_.clear();
+      }
     }
   }
   if (!cues || fallback) fit_pool(extract_edgels(want, false, nullptr), valid_rows, m);

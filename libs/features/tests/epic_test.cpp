@@ -336,6 +336,53 @@ TEST(LineTrackerCues, ColourShadowKeepsTheTrueEdge) {
   EXPECT_EQ(shadow.fallbacks, 0);
 }
 
+TEST(LineTrackerCues, AnOutlineOfTheBackgroundsGreyIsNotTakenForATextureLineInside) {
+  // A green face against a grey background of the same brightness: the outline shows on the
+  // colour gradient only. A dark texture band 6-9 px inside the face makes two strong grey edges
+  // with the face's colour on both sides. Learned on a clean frame (object side green, outside
+  // grey), the tracker keeps the outline: the band's edges have the object's colour outside
+  // (outside_distinct_k), and the colour gradient is searched with the cues before the grey one
+  // without them (colour_before_fallback). Without both, the band's grey edge wins.
+  const float g = kSponge.grey();
+  const Bgr background{g, g, g};
+  auto run = [&](const LineTrackerParams& p) {
+    LineTracker tracker(p);
+    std::mt19937 rng(14);
+    std::uniform_real_distribution<double> offset(-3.5, -2.5);
+    SequenceStats stats;
+    for (int seq = 0; seq < 6; ++seq) {
+      const TrueLine truth{{120.1, 119.7}, dir(0.3 + seq * kPi / 6.0)};
+      const ColourFrame clean(profile<Bgr>(truth, {0.0, 0.0}, {kSponge, background}), 3.0, 600 + seq);
+      LineTrackState state = object_on_minus_side();
+      const image::ColourView cv = clean.colour();
+      EXPECT_TRUE(tracker.track(clean.grey_view(), segment(truth.p, truth.t, kLength), state, &cv).found);
+      const TrueLine band{truth.p - 6.0 * truth.normal(), truth.t};
+      for (int f = 1; f <= 6; ++f) {
+        const ColourFrame frame(profile<Bgr>(truth, {0.0, -9.0, -6.0, 0.0},
+                                             {kSponge, kSponge.scaled(0.6f), kSponge, background}),
+                                3.0, 6000 * seq + f);
+        // Predicted 2.5-3.5 px towards the band: both within the window.
+        const Segment2 pred = segment(truth.p + offset(rng) * truth.normal(), truth.t, kLength);
+        const image::ColourView view = frame.colour();
+        classify(tracker.track(frame.grey_view(), pred, state, &view), truth, band, stats);
+      }
+    }
+    return stats;
+  };
+  LineTrackerParams p;
+  p.half_width = 12;
+  const SequenceStats with = run(p);
+  p.outside_distinct_k = 0.0;
+  p.colour_before_fallback = false;
+  const SequenceStats without = run(p);
+  print("outline vs texture band, outside check", with);
+  print("outline vs texture band, without", without);
+  EXPECT_EQ(with.on_truth, with.frames);
+  EXPECT_LE(with.err.max, 0.3);
+  EXPECT_EQ(without.on_truth, 0);
+  EXPECT_GE(without.on_distractor, without.frames / 2);
+}
+
 TEST(LineTrackerCues, GreyShadowFallsBackAndRelearns) {
   // Grey only: the object face darkens by 40 % (140 -> 84). The grey cue rejects the true edge,
   // the tracker falls back to no cues (the edge is the only one), reports it, and relearns; in

@@ -163,6 +163,17 @@ ParamRegistry make_registry(CycleParams& p) {
         "colour input: intensity may also differ from the learned mean by this fraction of it");
   r.add("track.learn_min_inlier_ratio", &t.learn_min_inlier_ratio, 0.0, 1.0, "",
         "inlier ratio a fit needs for the appearance to be learned from scratch");
+  r.add("track.outside_distinct_k", &t.outside_distinct_k, 0.0, 100.0, "tolerances",
+        "colour input, silhouette edges: where the learned outside colour differed from the object side's by this many "
+        "tolerances, an edge pixel with the object's colour outside is rejected (a texture line inside the outline; 0: off)");
+  r.add("track.share_face_appearance", &p.share_face_appearance,
+        "colour input: an edge not found in the last frame is searched with the colour learned on the same face by an edge that was found");
+  r.add("track.fallback_keeps_chroma", &t.fallback_keeps_chroma,
+        "colour input: when the learned cues leave no edge, the search without them still checks the object side's chromaticity");
+  r.add("track.fallback_unchecked", &t.fallback_unchecked,
+        "with fallback_keeps_chroma: a search that finds nothing so is repeated without any check");
+  r.add("track.colour_before_fallback", &t.colour_before_fallback,
+        "colour input: the colour gradient is searched with the learned cues before either gradient is searched without them");
   r.add("ellipse.max_candidates_per_line", &el.max_candidates_per_line, 1, 16, "", "edge point candidates kept per tracking line");
   r.add("ellipse.max_edge_angle", &el.max_edge_angle, 0.01, 1.5707963, "rad", "largest angle of the gradient to the sample normal");
   r.add("solver.min_observations", &s.min_observations, 1, 1000, "", "below this many observations the solve fails");

@@ -37,7 +37,10 @@ void ViewPredictor::predict(const scene::Object& obj, scene::View& view, const s
   mark_ambiguous(view, cam);
 
   // Which side of each visible edge shows the object (its visible faces), for cue integration.
-  for (scene::LineFeature& f : view.lines) {
+  if (side_face_.size() < 2 * view.lines.size()) side_face_.resize(2 * view.lines.size());
+  for (std::size_t li = 0; li < view.lines.size(); ++li) {
+    scene::LineFeature& f = view.lines[li];
+    side_face_[2 * li] = side_face_[2 * li + 1] = model::kNone;
     if (!f.visible || f.ambiguous) continue;
     const model::LineEdge& e = model.lines()[f.edge];
     const Eigen::Vector2d a = f.predicted.a, d = f.predicted.b - f.predicted.a;
@@ -47,10 +50,37 @@ void ViewPredictor::predict(const scene::Object& obj, scene::View& view, const s
       if (fi == model::kNone || !view.face_visible[fi]) continue;
       const Eigen::Vector3d pc = view.T_cam_obj * model::face_centroid(model, fi);
       if (pc.z() <= 1e-6) continue;
-      side[n.dot(K.project(pc) - a) > 0 ? 1 : 0] = true;
+      const int k = n.dot(K.project(pc) - a) > 0 ? 1 : 0;
+      side[k] = true;
+      side_face_[2 * li + k] = fi;
     }
     f.track.side[0].is_object = side[0];
     f.track.side[1].is_object = side[1];
+  }
+  // An object side of an edge not found in the last frame (coming into view, lost, or never
+  // found) is searched with the colour learned on the same face by an edge that was found: what
+  // it learned before may be stale or learned from a wrong edge (track.share_face_appearance).
+  if (p_.share_face_appearance) {
+    const std::size_t n_lines = view.lines.size();
+    for (std::size_t li = 0; li < n_lines; ++li) {
+      scene::LineFeature& f = view.lines[li];
+      for (int k = 0; k < 2; ++k) {
+        const model::Index face = side_face_[2 * li + k];
+        features::SideAppearance& a = f.track.side[k];
+        if (face == model::kNone || (a.learned && f.status == scene::FeatureStatus::kFound)) continue;
+        for (std::size_t gi = 0; gi < n_lines; ++gi) {
+          const scene::LineFeature& g = view.lines[gi];
+          if (gi == li || g.status != scene::FeatureStatus::kFound) continue;
+          const int gk = side_face_[2 * gi] == face ? 0 : (side_face_[2 * gi + 1] == face ? 1 : -1);
+          if (gk < 0) continue;
+          const features::SideAppearance& b = g.track.side[gk];
+          if (!b.learned || b.channels != 3) continue;  // colour only: a face's chromaticity, not its shading
+          a = b;
+          a.is_object = true;
+          break;
+        }
+      }
+    }
   }
 
   // Circle arcs: tracking lines at evenly spaced visible points of the projected circle.

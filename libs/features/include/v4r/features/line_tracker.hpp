@@ -63,6 +63,20 @@ struct LineTrackerParams {
   /// The appearance is learned from scratch (first frame, or after a cue fallback) only from a fit
   /// with at least this inlier ratio.
   double learn_min_inlier_ratio = 0.7;
+  /// Colour only, silhouette edges (one object side): the other side's appearance is learned too,
+  /// and when its chromaticity differed from the object side's by at least this many tolerances,
+  /// a candidate whose outer band has the object side's chromaticity is rejected: a line of the
+  /// object's own texture, with the object on both sides, is not its outline (0: off).
+  double outside_distinct_k = 2.0;
+  /// Colour only: when the learned cues leave no edge on the grey gradient, the colour gradient
+  /// is searched with the cues before both are searched again without them (an outline between
+  /// surfaces of equal brightness, beside a strong texture line of the object's own colour).
+  bool colour_before_fallback = true;
+  /// Colour, chromaticity-learned object sides: a fallback (the cues left no edge) still checks
+  /// the chromaticity, and only the grey level is let go; with fallback_unchecked, a fallback
+  /// that finds nothing so is searched once more without any check.
+  bool fallback_keeps_chroma = true;
+  bool fallback_unchecked = false;
 };
 
 /// \brief Appearance of one side of a tracked edge (paper 4.1): intensity and, on colour images,
@@ -120,6 +134,11 @@ struct LineTrackState {
   /// on the colour gradient, which fixes the sign of the projected gradient, and that edge's polarity.
   float colour_axis[3]{};
   int colour_polarity = 0;
+  /// Silhouette edges: appearance of the side without the object (the background), learned like
+  /// the object side; outside_side is the side it was learned on (-1: none), and a change of it
+  /// (the edge no longer a silhouette, or seen from the other side) forgets it.
+  SideAppearance outside;
+  int outside_side = -1;
 };
 
 /// \brief Offsets across a tracking window (pixels) where an edge may be found.
@@ -188,7 +207,9 @@ class LineTracker {
   bool colour_gradient(const LineTrackState& state, float axis[3]);
   // Edgels, RANSAC and measurement with the appearance check when `cues` (and without it when
   // that finds nothing): steps 3-5 on the current grad_.
-  void detect(int want, bool cues, int valid_rows, LineMeasurement& m);
+  void detect(int want, bool cues, int valid_rows, LineMeasurement& m, bool allow_fallback);
+  // Step 2: grad_ from patch_ (central differences across) for the valid rows; sets thr_.
+  void grey_gradient();
   // Steps 4-5: RANSAC and refinement over the pool; fills m (found, line, ...) and last_inliers_;
   // leaves the final inliers in inlier_idx_[0 .. m.inliers).
   void fit_pool(int pool_size, int valid_rows, LineMeasurement& m);
@@ -197,8 +218,12 @@ class LineTracker {
   // Mean rg chromaticity of the side band (colour image only); false when outside or too dark.
   bool chroma_band(int row, int col, int side, float rg[2]) const;
   bool appearance_ok(int row, int col) const;
+  // Prepares outside_check_ from the learned object and outside appearance (silhouette edges).
+  void prepare_outside_check(const LineTrackState& state);
   // Updates the appearance of the object sides from the inliers of `m` (in inlier_idx_).
   void learn_sides(LineTrackState& state, const LineMeasurement& m, bool reset) const;
+  // Updates one appearance from the bands on side `side` of the inliers of `m`.
+  void learn_band(SideAppearance& a, int side, const LineMeasurement& m, bool reset) const;
   int score_line(const LineFit& line, int sign, float* strength_sum);  // fills inlier_idx_, returns count
   bool fit_inliers(int count, LineFit* out) const;
 
@@ -228,6 +253,15 @@ class LineTracker {
   const image::ColourView* colour_ = nullptr;
   Eigen::Vector2d d_ = Eigen::Vector2d::Zero(), n_ = Eigen::Vector2d::Zero();  // window axis, normal
   SideCheck check_[2];
+  bool chroma_only_ = false;  // appearance_ok checks chromaticity only (a fallback's search)
+  // Silhouette edges (outside_distinct_k): candidates whose band on side `side` has the object
+  // side's chromaticity (mean, tol) are rejected.
+  struct OutsideCheck {
+    bool active = false;
+    int side = 0;
+    float mean[2]{};
+    float tol[2]{};
+  } outside_check_;
 };
 
 }  // namespace v4r::features

@@ -74,6 +74,10 @@ struct CycleParams {
   /// this view costs no wide window every frame. 0 disables the back-off.
   int search_backoff_frames = 4;
   int search_backoff_period = 4;
+  /// Cue integration: an edge's object side without a learned appearance (an edge coming into
+  /// view) takes the colour appearance learned on the same face by an edge found in the last
+  /// frame, so that its first search already rejects edges of other colours.
+  bool share_face_appearance = true;
   features::EllipseTrackerParams ellipse;  ///< tracking lines of circle arcs
   int circle_samples = 40;              ///< tracking lines per full circle (fewer for arcs)
   double circle_sigma_px = 0.7;         ///< a-priori noise of an ellipse edge point, pixels
@@ -96,7 +100,7 @@ struct CycleParams {
   /// within this distance of it (the two edges touch).
   double tangent_junction_tol_px = 1.5;
   double tangent_junction_sigma_scale = 6.0;  ///< its sigma = line sigma * this (weak along the line)
-  int min_lines = 4;                    ///< fewer observations than this: the view pose is not updated without a prior
+  int min_lines = 4;                    ///< fewer lines (circles: 4 edge points count one) than this: the view pose is not updated without a prior; junctions do not count (they are intersections of the lines)
   /// When the features do not fix the pose (fewer than min_lines, or a degenerate set: parallel
   /// edges, one circle), solve with the filter's prediction as a prior: the observed directions
   /// come from the image, the others from the prediction, and the object is `degraded`.

@@ -30,6 +30,7 @@ class ViewPredictor {
   CycleParams p_;
   VisibilityTester visibility_;
   std::vector<EdgeVisibility> edge_vis_;
+  std::vector<model::Index> side_face_;  // per line feature, 2: the visible face on each side (kNone: none)
 };
 
 }  // namespace v4r::pipeline

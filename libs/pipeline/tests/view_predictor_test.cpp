@@ -1,0 +1,129 @@
+// v4r - robust model-based object tracking. MIT licence.
+// ViewPredictor, cue integration: an edge not found in the last frame is searched with the colour
+// learned on the same face by an edge that was (CycleParams::share_face_appearance).
+#include <memory>
+
+#include <gtest/gtest.h>
+
+#include "v4r/geometry/look_at.hpp"
+#include "v4r/model/cao_reader.hpp"
+#include "v4r/model/face_centroid.hpp"
+#include "v4r/pipeline/view_predictor.hpp"
+#include "v4r/scene/scene.hpp"
+
+namespace v4r::pipeline {
+namespace {
+
+const char* kBox = R"(V1
+8
+-0.10 -0.075 -0.05
+ 0.10 -0.075 -0.05
+ 0.10  0.075 -0.05
+-0.10  0.075 -0.05
+-0.10 -0.075  0.05
+ 0.10 -0.075  0.05
+ 0.10  0.075  0.05
+-0.10  0.075  0.05
+0
+0
+6
+4 0 3 2 1
+4 4 5 6 7
+4 0 1 5 4
+4 2 3 7 6
+4 1 2 6 5
+4 3 0 4 7
+0
+0
+)";
+
+struct Fixture {
+  scene::Object obj;
+  scene::Camera cam;
+  scene::View view;
+  Fixture() {
+    auto m = model::parse_cao(kBox, "box.cao");
+    EXPECT_TRUE(m.has_value());
+    obj.model = std::make_shared<const model::Model>(std::move(*m));
+    cam.intrinsics.width = 640;
+    cam.intrinsics.height = 480;
+    cam.intrinsics.fx = cam.intrinsics.fy = 600;
+    cam.intrinsics.cx = 319.5;
+    cam.intrinsics.cy = 239.5;
+    obj.T_pred = geometry::look_at(0.6, 0.5, 0.6);
+    // One view of the camera, as the scene makes it: a line feature per model edge.
+    view.lines.resize(obj.model->lines().size());
+    for (std::size_t i = 0; i < view.lines.size(); ++i) view.lines[i].edge = static_cast<model::Index>(i);
+    view.face_visible.assign(obj.model->faces().size(), 0);
+  }
+  [[nodiscard]] bool object_side(std::size_t li, int k) const { return view.lines[li].track.side[k].is_object; }
+};
+
+features::SideAppearance green() {
+  features::SideAppearance a;
+  a.learned = true;
+  a.channels = 3;
+  a.mean[0] = 110.0f;
+  a.mean[1] = 0.25f;
+  a.mean[2] = 0.55f;
+  a.var[0] = 25.0f;
+  a.var[1] = a.var[2] = 1e-4f;
+  return a;
+}
+
+TEST(ViewPredictor, AnEdgeNotFoundTakesTheColourItsFaceShowsOnAFoundEdge) {
+  CycleParams p;
+  Fixture f;
+  ViewPredictor predictor(p);
+  predictor.predict(f.obj, f.view, f.cam);
+  // Two visible edges of one face (model face 1, the top z = +0.05, seen from above): edges
+  // whose left or right face is face 1.
+  const model::Model& m = *f.obj.model;
+  int donor = -1, taker = -1;
+  for (std::size_t li = 0; li < f.view.lines.size(); ++li) {
+    const auto& e = m.lines()[li];
+    if (!f.view.lines[li].visible || f.view.lines[li].ambiguous || (e.face_left != 1 && e.face_right != 1)) continue;
+    (donor < 0 ? donor : taker) = static_cast<int>(li);
+    if (taker >= 0) break;
+  }
+  ASSERT_GE(donor, 0);
+  ASSERT_GE(taker, 0);
+  ASSERT_TRUE(f.view.face_visible[1]);
+  // The donor was found and learned the face's colour on its face-1 side; the taker was not
+  // found and holds a stale grey appearance there.
+  auto face1_side = [&](int li) {
+    const Eigen::Vector2d a = f.view.lines[li].predicted.a, d = f.view.lines[li].predicted.b - a;
+    const Eigen::Vector3d c = f.view.T_cam_obj * model::face_centroid(m, 1);
+    return Eigen::Vector2d(-d.y(), d.x()).dot(f.cam.intrinsics.project(c) - a) > 0 ? 1 : 0;
+  };
+  const int kd = face1_side(donor), kt = face1_side(taker);
+  ASSERT_TRUE(f.object_side(donor, kd));
+  ASSERT_TRUE(f.object_side(taker, kt));
+  f.view.lines[donor].status = scene::FeatureStatus::kFound;
+  f.view.lines[donor].track.side[kd] = green();
+  features::SideAppearance grey = green();
+  grey.mean[1] = grey.mean[2] = 1.0f / 3.0f;
+  f.view.lines[taker].status = scene::FeatureStatus::kLost;
+  f.view.lines[taker].track.side[kt] = grey;
+
+  predictor.predict(f.obj, f.view, f.cam);
+  const features::SideAppearance& got = f.view.lines[taker].track.side[kt];
+  EXPECT_TRUE(got.is_object);
+  EXPECT_TRUE(got.learned);
+  EXPECT_FLOAT_EQ(got.mean[1], 0.25f);
+  EXPECT_FLOAT_EQ(got.mean[2], 0.55f);
+
+  // A found edge keeps what it learned itself; with the option off, a lost one does too.
+  f.view.lines[taker].status = scene::FeatureStatus::kFound;
+  f.view.lines[taker].track.side[kt] = grey;
+  predictor.predict(f.obj, f.view, f.cam);
+  EXPECT_FLOAT_EQ(f.view.lines[taker].track.side[kt].mean[1], 1.0f / 3.0f);
+  p.share_face_appearance = false;
+  ViewPredictor off(p);
+  f.view.lines[taker].status = scene::FeatureStatus::kLost;
+  off.predict(f.obj, f.view, f.cam);
+  EXPECT_FLOAT_EQ(f.view.lines[taker].track.side[kt].mean[1], 1.0f / 3.0f);
+}
+
+}  // namespace
+}  // namespace v4r::pipeline
