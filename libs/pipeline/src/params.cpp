@@ -76,6 +76,8 @@ ParamRegistry make_registry(CycleParams& p) {
   r.add("visibility.grazing_angle", &v.grazing_angle, 1.0, 3.0, "rad", "hidden faces below this may show as slivers");
   r.add("visibility.crease_angle", &v.crease_angle, 0.0, 1.0, "rad", "edges between faces closer than this in normal are dropped");
   r.add("visibility.samples", &v.samples, 2, 256, "", "points per edge tested for occlusion");
+  r.add("visibility.occluder_margin", &v.occluder_margin, 0.0, 1.0, "m",
+        "another object hides a point only when in front of it by more than this (objects in contact)");
   r.add("visibility.image_margin", &v.image_margin, 0.0, 100.0, "px", "edge parts nearer the border are cut");
   r.add("visibility.min_length", &v.min_length_px, 1.0, 1000.0, "px", "shortest visible edge part tracked");
   // Cycle.

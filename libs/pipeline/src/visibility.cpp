@@ -14,13 +14,14 @@ namespace {
 /// Whether face cache `f` (polygon in `poly`) hides the point at p_cam, seen along the ray
 /// through its normalised image point q.
 template <typename Face>
-bool face_hides(const Face& f, const Eigen::Vector2d* poly, const Eigen::Vector2d& q, const Eigen::Vector3d& p_cam) {
+bool face_hides(const Face& f, const Eigen::Vector2d* poly, const Eigen::Vector2d& q, const Eigen::Vector3d& p_cam,
+                double margin = 0.0) {
   if (q.x() < f.lo.x() || q.y() < f.lo.y() || q.x() > f.hi.x() || q.y() > f.hi.y()) return false;
   const double den = f.n_cam.dot(Eigen::Vector3d(q.x(), q.y(), 1.0));
   if (std::abs(den) < 1e-12) return false;
   const double z_face = f.d / den;
   // The face hides the point when it is hit clearly before it along the line of sight.
-  if (z_face <= 0.0 || z_face >= p_cam.z() * (1.0 - 1e-4) - 1e-5) return false;
+  if (z_face <= 0.0 || z_face >= p_cam.z() * (1.0 - 1e-4) - 1e-5 - margin) return false;
   return geometry::inside_polygon(q, poly + f.first, f.count);
 }
 
@@ -34,7 +35,7 @@ bool VisibilityTester::occluded(const Eigen::Vector3d& p_cam, model::Index face_
     if (face_hides(f, poly_.data(), q, p_cam)) return true;
   }
   for (const FaceCache& f : occluder_faces_)
-    if (face_hides(f, occluder_poly_.data(), q, p_cam)) return true;
+    if (face_hides(f, occluder_poly_.data(), q, p_cam, p_.occluder_margin)) return true;
   return false;
 }
 
@@ -56,7 +57,7 @@ bool VisibilityTester::hidden_by_other_object(const Eigen::Vector3d& p_cam) cons
   if (p_cam.z() <= 1e-6) return false;
   const Eigen::Vector2d q(p_cam.x() / p_cam.z(), p_cam.y() / p_cam.z());
   for (const FaceCache& f : occluder_faces_)
-    if (face_hides(f, occluder_poly_.data(), q, p_cam)) return true;
+    if (face_hides(f, occluder_poly_.data(), q, p_cam, p_.occluder_margin)) return true;
   return cylinder_hides(occluder_cylinders_, p_cam);
 }
 

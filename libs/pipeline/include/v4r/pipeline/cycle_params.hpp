@@ -74,9 +74,10 @@ struct CycleParams {
   /// this view costs no wide window every frame. 0 disables the back-off.
   int search_backoff_frames = 4;
   int search_backoff_period = 4;
-  /// Cue integration: an edge's object side without a learned appearance (an edge coming into
-  /// view) takes the colour appearance learned on the same face by an edge found in the last
-  /// frame, so that its first search already rejects edges of other colours.
+  /// Cue integration: the object side of an edge not found in the last frame (coming into view,
+  /// lost, never found) takes the colour appearance learned on the same face by an edge that was
+  /// found, so that its search rejects edges of other colours; what it learned itself may be stale
+  /// or learned from a wrong edge.
   bool share_face_appearance = true;
   features::EllipseTrackerParams ellipse;  ///< tracking lines of circle arcs
   int circle_samples = 40;              ///< tracking lines per full circle (fewer for arcs)

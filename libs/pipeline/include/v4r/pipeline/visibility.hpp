@@ -22,6 +22,10 @@ struct VisibilityParams {
   int samples = 12;               ///< points per edge tested for occlusion and image bounds
   double image_margin = 4.0;      ///< pixels: points nearer the border count as outside
   double min_length_px = 15.0;    ///< visible parts shorter than this are not tracked
+  /// metres: another object's face hides a point only when it lies in front of it by more than
+  /// this along the line of sight (two tracked poses are each uncertain by about a millimetre:
+  /// objects in contact, or two models of one object, do not hide each other's edges on the contact)
+  double occluder_margin = 0.003;
 };
 
 /// \brief The visible part of a model edge: parameters s0 < s1 in [0, 1] along a->b.
