@@ -11,9 +11,7 @@ namespace v4r::pipeline {
 ObjectSolve ObjectSolver::solve(const geometry::SE3& T_init, ObservationBuffer& buf, const SolvePrior& prior) {
   ObjectSolve out;
   buf.reset_inliers();
-  // Junctions are intersections of the tracked lines: they add no independent observation, so
-  // min_lines counts lines and circles (as buf.count() weighs them), not junctions.
-  const int n_obs = static_cast<int>(buf.lines.size() + buf.circles.size() / 4);
+  const int n_obs = buf.independent_count();  // junctions add nothing the lines do not fix
   const bool can_prior = p_.prior_fallback && prior.usable && prior.covariance.allFinite() && prior.covariance.trace() > 0.0;
   if (buf.cameras.empty() || !(n_obs >= p_.min_lines || (can_prior && n_obs >= 1))) return out;
 
@@ -38,13 +36,7 @@ ObjectSolve ObjectSolver::solve(const geometry::SE3& T_init, ObservationBuffer& 
   estimation::PoseResult result;
   if (n_obs >= p_.min_lines) result = solver_.solve(T_init, obs, flags);
   bool with_prior = false;
-  auto independent_inliers = [&buf]() {
-    long n = 0, c = 0;
-    for (const std::uint8_t f : buf.line_inliers) n += f != 0 ? 1 : 0;
-    for (const std::uint8_t f : buf.circle_inliers) c += f != 0 ? 1 : 0;
-    return static_cast<int>(n + c / 4);
-  };
-  if (can_prior && !(result.ok() && independent_inliers() >= p_.min_lines && result.rms_px <= p_.prior_max_rms_px)) {
+  if (can_prior && !(result.ok() && buf.independent_inliers() >= p_.min_lines && result.rms_px <= p_.prior_max_rms_px)) {
     // Partial observability: the image fixes some directions, the prediction the others.
     geometry::Matrix6d cov = prior.covariance;
     cov.diagonal().array() += 1e-12;
@@ -56,7 +48,7 @@ ObjectSolve ObjectSolver::solve(const geometry::SE3& T_init, ObservationBuffer& 
     with_prior = result.ok();
   }
   out.result = result;
-  if (!result.ok() || !(with_prior || independent_inliers() >= p_.min_lines)) return out;
+  if (!result.ok() || !(with_prior || buf.independent_inliers() >= p_.min_lines)) return out;
   out.updated = true;
   out.prior_used = with_prior;
   out.T_ref_obj = result.T_cam_obj;

@@ -54,6 +54,16 @@ struct ObservationBuffer {
   [[nodiscard]] int count() const {
     return static_cast<int>(lines.size() + points.size() + circles.size() / 4);
   }
+  /// Observations that fix the pose independently: lines and circles (4 edge points count one),
+  /// not junctions, which are intersections of the same lines (CycleParams::min_lines).
+  [[nodiscard]] int independent_count() const { return static_cast<int>(lines.size() + circles.size() / 4); }
+  /// The same over the observations the last solve kept (line_inliers, circle_inliers).
+  [[nodiscard]] int independent_inliers() const {
+    long n = 0, c = 0;
+    for (const std::uint8_t f : line_inliers) n += f != 0 ? 1 : 0;
+    for (const std::uint8_t f : circle_inliers) c += f != 0 ? 1 : 0;
+    return static_cast<int>(n + c / 4);
+  }
   /// Marks every observation an inlier (before a solve).
   void reset_inliers() {
     line_inliers.assign(lines.size(), 1);
