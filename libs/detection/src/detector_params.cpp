@@ -75,6 +75,8 @@ void add_params(ParamRegistry& r, DetectorParams& p) {
   r.add("detect.verify.max_leak", &f.max_leak, 0.0, 1.0, "",
         "... when at most this share of the colours just outside its silhouette look like those just inside");
   r.add("detect.verify.leak_min_samples", &f.leak_min_samples, 1, 4096, "", "... and at least this many colour samples lie outside it");
+  r.add("detect.verify.leak_group_samples", &f.leak_group_samples, 0, 4096, "",
+        "an outside colour is compared with the inside colours of its own silhouette edge when that edge has this many samples (0: with all)");
   r.add("detect.verify.colour_ambiguity", &f.colour_ambiguity, 0.0, 1.0, "",
         "a pose verified by colour is withdrawn when a distinct verified pose scores at least its score minus this (0: off)");
   r.add("detect.verify.edge_ambiguity", &f.edge_ambiguity, 0.0, 1.0, "",

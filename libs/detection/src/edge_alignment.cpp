@@ -31,7 +31,8 @@ EdgeAligner::EdgeAligner(const model::Model& model, const geometry::PinholeCamer
       cos_match_(std::cos(p.verify.match_angle_deg * kDeg)),
       cos_search_(std::cos(std::min(80.0, 1.5 * p.verify.match_angle_deg) * kDeg)),
       projector_(model, p.templates.crease_angle_deg * kDeg),
-      samples_(static_cast<std::size_t>(std::max(16, p.verify.max_samples))) {}
+      samples_(static_cast<std::size_t>(std::max(16, p.verify.max_samples))),
+      contrast_(features::SilhouetteContrastParams{.min_group_samples = p.verify.leak_group_samples}) {}
 
 double EdgeAligner::search(const GradientPyramid& g, const Eigen::Vector2d& px, const Eigen::Vector2d& n,
                            double range) const {
@@ -234,7 +235,7 @@ void EdgeAligner::measure_leak(const image::ColourView& colour, const geometry::
     const EdgeSample& s = samples_[i];
     if (s.object_side == 0) continue;
     contrast_.add_point(image::ImageView{}, colour, s.px, s.object_side > 0 ? Eigen::Vector2d(-s.normal) : s.normal,
-                        s.inside_extent_px);
+                        s.inside_extent_px, s.piece);
   }
   contrast_.finish();
   v.leak_samples = contrast_.samples();

@@ -84,6 +84,9 @@ struct VerifyParams {
   double leak_score = 0.6;
   double max_leak = 0.25;           ///< largest leak of such a pose
   int leak_min_samples = 30;        ///< fewer colour samples outside its silhouette: not verified this way
+  /// An outside colour is compared with the inside colours of its own silhouette edge when that
+  /// edge has at least this many samples (a face in shadow beside a lit one; 0: with all of them).
+  int leak_group_samples = 12;
   /// Such a pose is withdrawn when another verified pose, distinct (distinct_m, distinct_deg,
   /// beyond the model's symmetries), scores at least its score minus this (0: off).
   double colour_ambiguity = 0.05;

@@ -17,6 +17,12 @@ struct SilhouetteContrastParams {
   /// own blur, close enough to stay on the object.
   std::array<double, 3> offsets_px{3.0, 6.0, 10.0};
   double match_share = 0.05;    ///< an outside sample looks like the object when this share of the inside samples is in its colour bin's neighbourhood
+  /// > 0: an outside sample is compared with the inside samples of its own group (add_point's
+  /// `group`: one silhouette edge, whose inside is one face) when the group has at least this
+  /// many, else with all of them. An object of lit and shaded faces (a grey plate in shadow
+  /// beside a bright one) then does not count a dark background as its own colour along the
+  /// bright face. 0: every outside sample is compared with all inside samples.
+  int min_group_samples = 0;
 };
 
 /// \brief Does the image around the projected silhouette look like the object inside and like
@@ -46,8 +52,10 @@ class SilhouetteContrast {
   /// `grey` is used). Pairs with a sample outside the image are skipped. `inside_extent_px`: how
   /// far the object reaches inwards from `p` (a thin plate seen edge-on: a few pixels); inside
   /// samples are taken at most that deep (at least 1 px), outside ones at every offset.
+  /// `group`: the silhouette edge the point lies on (see min_group_samples); the points of one
+  /// group are added one after another.
   void add_point(const image::ImageView& grey, const image::ColourView& colour, const Eigen::Vector2d& p,
-                 const Eigen::Vector2d& outward, double inside_extent_px = kUnbounded);
+                 const Eigen::Vector2d& outward, double inside_extent_px = kUnbounded, std::uint32_t group = 0);
   static constexpr double kUnbounded = 1e9;
   /// Counts the leak over the samples added since reset().
   void finish();
@@ -60,10 +68,15 @@ class SilhouetteContrast {
   static constexpr int kLogBins = 28;     // 0.25 wide over log(1 .. 766)
   static int bin_of(const float bgr[3]);
   bool sample(const image::ImageView& grey, const image::ColourView& colour, const Eigen::Vector2d& p, int* bin) const;
+  using Histogram = std::array<std::uint16_t, 34 * 34 * 28>;
+  // Whether `need` or more of the histogram's samples lie in the bin's neighbourhood.
+  static bool looks_inside(const Histogram& h, int bin, int need);
 
   SilhouetteContrastParams p_;
-  std::array<std::uint16_t, kChromaBins * kChromaBins * kLogBins> hist_{};
+  Histogram hist_{};        // all inside samples
+  Histogram group_hist_{};  // one group's inside samples (min_group_samples > 0)
   std::array<int, kMaxSamples> inside_{}, outside_{};
+  std::array<std::uint32_t, kMaxSamples> group_{};
   int inside_n_ = 0, outside_n_ = 0, leaked_ = 0;
 };
 
