@@ -94,6 +94,8 @@ ParamRegistry make_registry(CycleParams& p) {
         "threads of the vision cycle: objects (or one object's camera views) measured in parallel");
   r.add("cycle.ambiguity_angle", &p.ambiguity_angle, 0.0, 1.0, "rad", "edges closer than this in direction count as parallel");
   r.add("cycle.ambiguity_margin", &p.ambiguity_margin_px, -100.0, 100.0, "px", "parallel edges nearer than half_width + this are side by side");
+  r.add("cycle.converging_px", &p.converging_px, 0.0, 100.0, "px",
+        "a short edge that stays this close to a longer edge from a shared junction over its whole length is left out (0: off)");
   r.add("cycle.track_side_by_side", &p.track_side_by_side,
         "track side-by-side edges in split windows or as one mid-line edge; false: leave both out");
   r.add("cycle.split_min_px", &p.split_min_px, 0.5, 1000.0, "px",

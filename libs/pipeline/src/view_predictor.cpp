@@ -112,6 +112,21 @@ void ViewPredictor::predict(const scene::Object& obj, scene::View& view, const s
   }
 }
 
+void ViewPredictor::leave_out_converging(scene::LineFeature& f, scene::LineFeature& g, double flen, double glen) const {
+  scene::LineFeature& shorter = flen <= glen ? f : g;
+  const scene::LineFeature& longer = flen <= glen ? g : f;
+  const double slen = std::min(flen, glen);
+  // A shared junction: one end of each at the same place in the image.
+  const auto near = [](const Eigen::Vector2d& a, const Eigen::Vector2d& b) { return (a - b).squaredNorm() < 1.0; };
+  const features::Segment2& s = shorter.predicted;
+  const features::Segment2& l = longer.predicted;
+  if (!(near(s.a, l.a) || near(s.a, l.b) || near(s.b, l.a) || near(s.b, l.b))) return;
+  const Eigen::Vector2d su = (shorter.predicted.b - shorter.predicted.a) / slen;
+  const Eigen::Vector2d lu = (longer.predicted.b - longer.predicted.a).normalized();
+  const double sin_angle = std::abs(su.x() * lu.y() - su.y() * lu.x());
+  if (slen * sin_angle <= p_.converging_px) shorter.ambiguous = true;
+}
+
 void ViewPredictor::mark_ambiguous(scene::View& view, const scene::Camera& cam) const {
   // Two visible edges that project (almost) parallel, side by side and closer than a tracking
   // window is wide (a thin face seen obliquely, a double contour) would both find the stronger
@@ -148,7 +163,11 @@ void ViewPredictor::mark_ambiguous(scene::View& view, const scene::Camera& cam) 
       if ((!g.visible && !g.grazing) || (f.grazing && g.grazing)) continue;
       const Eigen::Vector2d gd = g.predicted.b - g.predicted.a;
       const double glen = gd.norm();
-      if (glen < 1e-9 || std::abs(fu.dot(gd) / glen) < cos_parallel) continue;
+      if (glen < 1e-9) continue;
+      if (std::abs(fu.dot(gd) / glen) < cos_parallel) {
+        if (p_.converging_px > 0.0 && f.visible && g.visible) leave_out_converging(f, g, flen, glen);
+        continue;
+      }
       // Side by side: g's ends near f's line, and the two overlap along f's direction.
       const double da = std::abs(fn.dot(g.predicted.a - fa)), db = std::abs(fn.dot(g.predicted.b - fa));
       if (std::min(da, db) > max_dist) continue;

@@ -27,6 +27,9 @@ class ViewPredictor {
 
  private:
   void mark_ambiguous(scene::View& view, const scene::Camera& cam) const;
+  // Leaves the shorter of two non-parallel edges out when it leaves their shared junction within
+  // converging_px of the other over its whole length (CycleParams::converging_px).
+  void leave_out_converging(scene::LineFeature& f, scene::LineFeature& g, double flen, double glen) const;
   CycleParams p_;
   VisibilityTester visibility_;
   std::vector<EdgeVisibility> edge_vis_;
