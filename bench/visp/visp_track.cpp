@@ -42,6 +42,7 @@
 #include <visp3/core/vpRotationMatrix.h>
 #include <visp3/core/vpThetaUVector.h>
 #include <visp3/core/vpTranslationVector.h>
+#include <visp3/klt/vpKltOpencv.h>
 #include <visp3/mbt/vpMbGenericTracker.h>
 #include <visp3/me/vpMe.h>
 
@@ -62,6 +63,10 @@ struct Options {
   // Face visibility (degrees between the face normal and the line of sight; ViSP's own
   // defaults 70/80), near/far clipping (metres; the benchmark's objects are at 0.3-2 m).
   double angle_appear = 70.0, angle_disappear = 80.0, near_clip = 0.05, far_clip = 3.0;
+  // --klt: moving edges and KLT points on the faces (EDGE_TRACKER | KLT_TRACKER), KLT settings of
+  // ViSP's own cube configuration (mbt/cube.xml): 300 features, window 5, quality 0.01,
+  // min distance 5, Harris 0.01, block 3, 3 pyramid levels, mask border 5.
+  bool klt = false;
 };
 
 [[noreturn]] void die(const std::string& msg) {
@@ -98,10 +103,11 @@ Options parse(int argc, char** argv) {
     else if (a == "--mu") o.mu = number();
     else if (a == "--near") o.near_clip = number();
     else if (a == "--far") o.far_clip = number();
+    else if (a == "--klt") o.klt = true;
     else if (a == "--help" || a == "-h") {
       std::cout << "usage: visp_track --model M.cao --camera camera.yaml --input FRAMES --init-pose-file P.txt "
                    "--output out.csv [--mask-size N] [--range PX] [--threshold T] [--sample-step PX] "
-                   "[--mu M] [--angle-appear DEG] [--angle-disappear DEG] [--near M] [--far M]\n";
+                   "[--mu M] [--angle-appear DEG] [--angle-disappear DEG] [--near M] [--far M] [--klt]\n";
       std::exit(0);
     } else {
       die("unknown option '" + a + "'");
@@ -163,8 +169,21 @@ int main(int argc, char** argv) {
   me.setMu2(o.mu);
   me.setSampleStep(o.sample_step);
 
-  vpMbGenericTracker tracker(1, vpMbGenericTracker::EDGE_TRACKER);
+  vpMbGenericTracker tracker(1, o.klt ? (vpMbGenericTracker::EDGE_TRACKER | vpMbGenericTracker::KLT_TRACKER)
+                                      : vpMbGenericTracker::EDGE_TRACKER);
   try {
+    if (o.klt) {
+      vpKltOpencv klt;
+      klt.setMaxFeatures(300);
+      klt.setWindowSize(5);
+      klt.setQuality(0.01);
+      klt.setMinDistance(5);
+      klt.setHarrisFreeParameter(0.01);
+      klt.setBlockSize(3);
+      klt.setPyramidLevels(3);
+      tracker.setKltOpencv(klt);
+      tracker.setKltMaskBorder(5);
+    }
     tracker.setCameraParameters(cam);
     tracker.setMovingEdge(me);
     tracker.setAngleAppear(vpMath::rad(o.angle_appear));
