@@ -54,6 +54,8 @@ void add_params(ParamRegistry& r, DetectorParams& p) {
   r.add("detect.verify.depth_scan_steps", &f.depth_scan_steps, 0, 20, "", "distances tried either side of a hypothesis before its refinement");
   r.add("detect.verify.depth_scan_step", &f.depth_scan_step, 0.001, 0.5, "", "relative distance step of that scan");
   r.add("detect.verify.refine_iterations", &f.refine_iterations, 0, 100, "", "iterations of the 6-DoF edge alignment of a hypothesis");
+  r.add("detect.verify.refine_tukey", &f.refine_tukey_px, 0.0, 64.0, "px",
+        "after the first third of the alignment, matches are weighted by Tukey's biweight of this width (0: Huber throughout)");
   r.add("detect.verify.match_distance", &f.match_distance_px, 0.5, 10.0, "px", "a sample matches a gradient this close along its normal");
   r.add("detect.verify.match_angle", &f.match_angle_deg, 1.0, 90.0, "deg", "largest angle between a matching gradient and the edge normal");
   r.add("detect.verify.min_gradient", &f.min_gradient, 0.0, 255.0, "grey/px",

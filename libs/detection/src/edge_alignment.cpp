@@ -106,6 +106,7 @@ int EdgeAligner::refine(const GradientPyramid& g, geometry::SE3& T) {
     geometry::Vector6d b = geometry::Vector6d::Zero();
     int used = 0;
     const double huber = 1.5;
+    const bool tukey = p_.refine_tukey_px > 0.0;
     for (std::size_t i = 0; i < n; ++i) {
       const EdgeSample& s = samples_[i];
       const double t = search(g, s.px, s.normal, range);
@@ -120,7 +121,13 @@ int EdgeAligner::refine(const GradientPyramid& g, geometry::SE3& T) {
       J.head<3>() = nJ.transpose();
       J.tail<3>() = (-(nJ * geometry::hat(Xc))).transpose();
       const double r = -t;  // residual: projected point minus the matched edge, along n
-      const double w = std::abs(r) <= huber ? 1.0 : huber / std::abs(r);
+      // Huber while the range is wide; then Tukey's biweight: a sample matched farther than
+      // refine_tukey_px (an occluder's edge, a texture line) no longer pulls the pose.
+      double w = std::abs(r) <= huber ? 1.0 : huber / std::abs(r);
+      if (tukey && f >= 0.34) {
+        const double u = r / p_.refine_tukey_px;
+        w = std::abs(u) < 1.0 ? (1.0 - u * u) * (1.0 - u * u) : 0.0;
+      }
       H.noalias() += w * J * J.transpose();
       b.noalias() += w * r * J;
       ++used;

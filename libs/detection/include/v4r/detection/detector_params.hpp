@@ -63,6 +63,10 @@ struct VerifyParams {
   int depth_scan_steps = 3;         ///< distances tried either side of a hypothesis before refining
   double depth_scan_step = 0.03;    ///< relative distance step of that scan
   int refine_iterations = 12;       ///< Gauss-Newton iterations of the 6-DoF edge alignment
+  /// After the first third of those iterations, samples are weighted by Tukey's biweight with
+  /// this width (px): a match farther off (an occluder's edge, a texture line) stops pulling the
+  /// pose. 0: Huber (1.5 px) throughout.
+  double refine_tukey_px = 4.5;
   double match_distance_px = 1.5;   ///< px: a sample matches a gradient this close along its normal
   double match_angle_deg = 15.0;    ///< degrees: ... whose orientation is this close to the edge normal
   /// Grey levels per pixel of a matching gradient (a step of 2x this): the highest threshold, as
