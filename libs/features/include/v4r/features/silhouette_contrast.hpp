@@ -68,7 +68,7 @@ class SilhouetteContrast {
   static constexpr int kLogBins = 28;     // 0.25 wide over log(1 .. 766)
   static int bin_of(const float bgr[3]);
   bool sample(const image::ImageView& grey, const image::ColourView& colour, const Eigen::Vector2d& p, int* bin) const;
-  using Histogram = std::array<std::uint16_t, 34 * 34 * 28>;
+  using Histogram = std::array<std::uint16_t, kChromaBins * kChromaBins * kLogBins>;
   // Whether `need` or more of the histogram's samples lie in the bin's neighbourhood.
   static bool looks_inside(const Histogram& h, int bin, int need);
 

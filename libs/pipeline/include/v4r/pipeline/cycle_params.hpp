@@ -115,10 +115,10 @@ struct CycleParams {
   bool joint_solve = true;
   double ambiguity_angle = 0.2;         ///< radians: edges closer than this in image direction count as parallel
   double ambiguity_margin_px = 2.0;     ///< parallel edges closer than track.half_width + this are side by side
-  /// A short edge that leaves a junction at a small angle to a longer edge from the same junction,
-  /// and stays within this distance of it over its whole length, is left out (ambiguous): its
-  /// window always holds the other edge too (the short side of a face seen at a grazing angle,
-  /// beside the face's long crease). 0: off.
+  /// A short edge that leaves a junction with a longer (not parallel) edge and stays within this
+  /// distance of it over its whole length (length x sin(angle) <= this) is left out (ambiguous):
+  /// its window always holds the other edge too (the short side of a face seen at a grazing
+  /// angle, beside the face's long crease; at right angles, an edge shorter than this). 0: off.
   double converging_px = 6.0;
   /// Side-by-side edges (a thin wall seen obliquely) are tracked in windows split half way between
   /// them when each keeps at least this many pixels towards the other; closer ones are ambiguous
