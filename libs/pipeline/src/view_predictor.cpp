@@ -121,8 +121,8 @@ void ViewPredictor::leave_out_converging(scene::LineFeature& f, scene::LineFeatu
   const features::Segment2& s = shorter.predicted;
   const features::Segment2& l = longer.predicted;
   if (!(near(s.a, l.a) || near(s.a, l.b) || near(s.b, l.a) || near(s.b, l.b))) return;
-  const Eigen::Vector2d su = (shorter.predicted.b - shorter.predicted.a) / slen;
-  const Eigen::Vector2d lu = (longer.predicted.b - longer.predicted.a).normalized();
+  const Eigen::Vector2d su = (s.b - s.a) / slen;
+  const Eigen::Vector2d lu = (l.b - l.a).normalized();
   const double sin_angle = std::abs(su.x() * lu.y() - su.y() * lu.x());
   if (slen * sin_angle <= p_.converging_px) shorter.ambiguous = true;
 }
