@@ -19,7 +19,8 @@ Detector::Detector(std::shared_ptr<const model::Model> model, std::shared_ptr<co
       p_(p),
       pyramid_(cam.width, cam.height, p.search.fine_spread, p.search.coarse_spread),
       aligner_(*model_, cam, p),
-      symmetries_(model_symmetries(*model_)) {
+      symmetries_(model_symmetries(*model_)),
+      near_symmetries_(near_symmetries(*model_, p.verify.near_symmetry)) {
   if (p_.colour.enabled)
     if (const auto rgb = model::dominant_face_colour(*model_)) {
       colour_ = std::make_unique<ColourRegions>(*model_, *templates_, cam_, *rgb, p_.colour);
@@ -318,6 +319,7 @@ DetectionResult Detector::run(std::span<Hypothesis> out) {
     }
     for (Hypothesis& h : work_) h.verified = h.verified && !h.ambiguous;
   }
+  verify_stand_out();
   std::sort(work_.begin(), work_.end(), [](const Hypothesis& a, const Hypothesis& b) {
     if (a.verified != b.verified) return a.verified;
     return a.verification.score > b.verification.score;
@@ -336,6 +338,33 @@ DetectionResult Detector::run(std::span<Hypothesis> out) {
   r.hypotheses = static_cast<int>(n);
   r.refine_ms = ms_between(t1, Clock::now());
   return r;
+}
+
+void Detector::verify_stand_out() {
+  const VerifyParams& v = p_.verify;
+  if (frame_colour_.empty() || v.stand_out_score >= v.accept_score || work_.empty()) return;
+  Hypothesis* best = nullptr;
+  for (Hypothesis& h : work_) {
+    if (h.verified) return;
+    if (best == nullptr || h.verification.score > best->verification.score) best = &h;
+  }
+  Verification& bv = best->verification;
+  if (bv.samples < v.min_samples || bv.score < v.stand_out_score) return;
+  for (const Hypothesis& o : work_) {
+    if (&o == best || o.verification.score < bv.score - v.stand_out_margin) continue;
+    const PoseError e = symmetric_pose_error(o.T_cam_obj, best->T_cam_obj, symmetries_);
+    if (e.translation > v.distinct_m || e.rotation > v.distinct_deg * kDeg) return;
+  }
+  if (bv.leak_samples == 0) aligner_.measure_leak(frame_colour_, best->T_cam_obj, bv);
+  if (bv.leak_samples < v.leak_min_samples || bv.leak < 0.0 || bv.leak > v.stand_out_max_leak) return;
+  // Its near-symmetric twins (not among the hypotheses when the search found only one of them)
+  // must score stand_out_margin less too.
+  for (const geometry::SE3& S : near_symmetries_) {
+    geometry::SE3 T = best->T_cam_obj * S;
+    aligner_.refine(pyramid_, T);
+    if (aligner_.verify(pyramid_, T).score >= bv.score - v.stand_out_margin) return;
+  }
+  best->verified = true;
 }
 
 }  // namespace v4r::detection

@@ -85,6 +85,12 @@ void add_params(ParamRegistry& r, DetectorParams& p) {
         "a pose verified by its edges is withdrawn when a distinct verified pose scores at least its score minus this (0: off)");
   r.add("detect.verify.distinct_m", &f.distinct_m, 0.0, 10.0, "m", "poses farther apart than this are distinct (colour ambiguity)");
   r.add("detect.verify.distinct_deg", &f.distinct_deg, 0.0, 180.0, "deg", "... or turned further apart than this");
+  r.add("detect.verify.stand_out_score", &f.stand_out_score, 0.0, 1.0, "",
+        "with nothing verified otherwise, the best pose is verified when it scores at least this (>= accept_score: off),");
+  r.add("detect.verify.stand_out_margin", &f.stand_out_margin, 0.0, 1.0, "", "... every distinct pose scores at least this less");
+  r.add("detect.verify.stand_out_max_leak", &f.stand_out_max_leak, 0.0, 1.0, "", "... and its silhouette leaks at most this (colour images)");
+  r.add("detect.verify.near_symmetry", &f.near_symmetry, 0.0, 0.5, "",
+        "... and its twin under each near symmetry within this share of the model's diagonal scores stand_out_margin less (0: off)");
   auto& c = p.colour;
   r.add("detect.colour.enabled", &c.enabled,
         "models with a face colour: search only around regions of that colour at 1/4 resolution (colour images)");

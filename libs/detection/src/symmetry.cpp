@@ -1,6 +1,7 @@
 // v4r - robust model-based object tracking. MIT licence.
 #include "v4r/detection/symmetry.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -31,8 +32,9 @@ std::vector<geometry::SE3> model_symmetries(const model::Model& model, double to
   for (std::size_t i = 0; i < model.lines().size(); ++i) {
     const Eigen::Vector3d a = model.line_point_a(static_cast<model::Index>(i));
     const Eigen::Vector3d b = model.line_point_b(static_cast<model::Index>(i));
-    if (!has_point(pts, a, tol)) pts.push_back(a);
-    if (!has_point(pts, b, tol)) pts.push_back(b);
+    // (Shared end points once; a coarse tol would merge distinct corners, unevenly.)
+    if (!has_point(pts, a, std::min(tol, 1e-6))) pts.push_back(a);
+    if (!has_point(pts, b, std::min(tol, 1e-6))) pts.push_back(b);
     mids.push_back(0.5 * (a + b));
   }
   // An arc by its centre and the two points a radius along its normal either way (radius and
@@ -72,6 +74,23 @@ std::vector<geometry::SE3> model_symmetries(const model::Model& model, double to
       }
       if (ok) out.emplace_back(R, c - R * c);
     }
+  return out;
+}
+
+std::vector<geometry::SE3> near_symmetries(const model::Model& model, double relative_tol) {
+  std::vector<geometry::SE3> out;
+  if (!(relative_tol > 0.0) || model.junctions().empty()) return out;
+  Eigen::Vector3d lo = model.junctions().front().p, hi = lo;
+  for (const auto& j : model.junctions()) {
+    lo = lo.cwiseMin(j.p);
+    hi = hi.cwiseMax(j.p);
+  }
+  const std::vector<geometry::SE3> exact = model_symmetries(model);
+  for (const geometry::SE3& S : model_symmetries(model, relative_tol * (hi - lo).norm())) {
+    bool is_exact = false;
+    for (const geometry::SE3& E : exact) is_exact = is_exact || (S.rotation() - E.rotation()).norm() < 1e-9;
+    if (!is_exact) out.push_back(S);
+  }
   return out;
 }
 

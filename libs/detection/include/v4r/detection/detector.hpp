@@ -26,7 +26,8 @@ struct Hypothesis {
   double template_score = 0.0;  ///< fine template match, share of the best possible (0..1)
   Verification verification;    ///< edge test (and, below its bar, colour test) of the refined pose
   /// verification.score >= detect.verify.accept_score, or (colour images) >= leak_score with a
-  /// leak <= max_leak; with enough samples either way
+  /// leak <= max_leak; with enough samples either way; or, with no other verified, the best pose
+  /// standing out (detect.verify.stand_out_*)
   bool verified = false;
   /// Verified, then withdrawn: another verified pose, distinct beyond the model's symmetries,
   /// scores within detect.verify.colour_ambiguity of it (a colour verdict) or edge_ambiguity (an
@@ -120,6 +121,9 @@ class Detector {
     std::int16_t x = 0, y = 0;
   };
   DetectionResult run(std::span<Hypothesis> out);
+  /// With no hypothesis verified, verifies the best-scoring one when it stands out
+  /// (detect.verify.stand_out_*).
+  void verify_stand_out();
   /// Full-resolution box of the coarse templates placed over the colour regions (their anchor
   /// windows plus their extent grown by 15 %), grown by detect.colour.roi_margin.
   PixelBox colour_roi() const;
@@ -147,6 +151,7 @@ class Detector {
   std::vector<Candidate> picked_;         // distinct fine candidates
   std::vector<Hypothesis> work_;          // refined hypotheses before sorting
   std::vector<geometry::SE3> symmetries_;  // of the model (ambiguity of verified poses)
+  std::vector<geometry::SE3> near_symmetries_;  // detect.verify.near_symmetry: twins a pose must stand out from
 };
 
 }  // namespace v4r::detection

@@ -97,6 +97,17 @@ struct VerifyParams {
   double edge_ambiguity = 0.0;      ///< the same for a pose verified by its edges (0: off)
   double distinct_m = 0.05;         ///< metres: poses farther apart are distinct
   double distinct_deg = 5.0;        ///< degrees: ... or turned further apart
+  /// When no pose is verified otherwise, the best-scoring one is verified when it stands out: it
+  /// scores at least stand_out_score, every distinct pose (distinct_m, distinct_deg, beyond the
+  /// symmetries) scores at least stand_out_margin less, and its silhouette leaks at most
+  /// stand_out_max_leak (colour images only). A partly hidden object: its visible edges match,
+  /// nothing else in the image comes close. stand_out_score >= accept_score: off.
+  double stand_out_score = 0.65;
+  double stand_out_margin = 0.1;
+  double stand_out_max_leak = 0.5;
+  /// Near symmetries (detection::near_symmetries) within this share of the model's bounding-box
+  /// diagonal: a pose stands out only when its twin under each scores stand_out_margin less (0: off).
+  double near_symmetry = 0.05;
 };
 
 /// \brief The colour stage (the paper's sponge): used when the model's faces carry a colour

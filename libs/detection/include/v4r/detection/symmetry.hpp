@@ -15,6 +15,12 @@ namespace v4r::detection {
 /// An edge-based detector cannot tell T_cam_obj from T_cam_obj * S.
 std::vector<geometry::SE3> model_symmetries(const model::Model& model, double tol = 1e-6);
 
+/// \brief The near symmetries of a model: the rotations of model_symmetries that map it onto
+/// itself within `relative_tol` of its bounding box's diagonal but are not exact symmetries (a
+/// ship section whose two walls differ in height by 2 cm, turned about its vertical axis). An
+/// edge-based detector can barely tell T_cam_obj from T_cam_obj * S; empty for relative_tol <= 0.
+std::vector<geometry::SE3> near_symmetries(const model::Model& model, double relative_tol);
+
 /// \brief Translation (metres) and rotation (radians) error of `estimate` against `truth`, the
 /// smallest over the symmetries (T_cam_obj * S, S from model_symmetries).
 struct PoseError {
