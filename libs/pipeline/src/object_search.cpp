@@ -41,6 +41,8 @@ void add_search_params(ParamRegistry& r, ObjectSearchParams& p) {
         "share of the projected model's edge samples the image must confirm for a found pose");
   r.add("search.local_accept_evidence", &p.local_accept_evidence, 0.0, 1.0, "",
         "the same for a restart around the last tracked pose (then the whole image is not searched on that frame)");
+  r.add("search.edge_test_evidence", &p.edge_test_evidence, 0.0, 1.0, "",
+        "below its accept share but at least this, a found pose is accepted when the detector's edge test verifies it (>= accept_evidence: off)");
   r.add("search.view_margin", &p.view_margin_deg, 0.0, 180.0, "deg",
         "a found pose must lie in the detector's view range (detect.views.*) widened by this");
   r.add("search.confirm_translation", &p.confirm_translation_m, 0.0, 10.0, "m",
@@ -171,8 +173,9 @@ double ObjectSearch::refine(std::size_t object, const CameraImage& img, double s
   const StatusParams& sp = probe_.params().status;
   const bool leaks = slot.leak_typical >= 0.0 && slot.leak_typical <= sp.leak_max_typical && o.leak_samples >= sp.leak_min_samples && sp.leak_margin < 1.0 &&
                      o.leak > slot.leak_typical + sp.leak_margin && over_place(slot, o.T_ref_obj, slot.T_leak);
-  const bool ok = o.status == scene::TrackStatus::kTracking && o.evidence >= accept_evidence && !leaks &&
-                  in_view_range(slot, o.T_ref_obj);
+  const bool tracked = o.status == scene::TrackStatus::kTracking && !leaks && in_view_range(slot, o.T_ref_obj);
+  const bool ok = tracked && (o.evidence >= accept_evidence ||
+                              (o.evidence >= p_.edge_test_evidence && edge_test(slots_[object], img, o.T_ref_obj)));
   // Rank: edge samples confirmed, times the square of their share, weighed down by the pose
   // solve's RMS residual as the cycle's quality is (1 / (1 + (rms / 1.5 px)^2)). An edge image
   // can be fitted by more than one pose of a box (a Necker-like reversal: turned and farther, its
@@ -188,6 +191,18 @@ double ObjectSearch::refine(std::size_t object, const CameraImage& img, double s
   T = o.T_ref_obj;
   o.status = scene::TrackStatus::kUninitialised;  // the probe object rests until the next hypothesis
   return ok ? rank : -1.0;
+}
+
+bool ObjectSearch::edge_test(Slot& s, const CameraImage& img, const geometry::SE3& T) {
+  if (!s.detector) return false;
+  if (gradients_id_ != search_frame_id_) {
+    const bool ok = img.colour.empty() ? s.detector->set_image(img.grey) : s.detector->set_image(img.colour);
+    if (!ok) return false;
+    gradients_id_ = search_frame_id_;
+  }
+  const detection::Verification v = s.detector->verify(T);
+  const detection::VerifyParams& vp = s.detector->params().verify;
+  return v.samples >= vp.min_samples && v.score >= vp.accept_score;
 }
 
 bool ObjectSearch::searchable(std::size_t object) const { return object < slots_.size() && slots_[object].active; }
@@ -220,6 +235,7 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
   const auto t0 = Clock::now();
   rep.searched = true;
   ++s.search_frames;
+  ++search_frame_id_;
   accepted_.clear();
   // The object's tag, if given and seen: a pose of the object must put it where it is seen.
   const detection::TagObservation tag = s.tag ? s.tag->detect(img.grey) : detection::TagObservation{};
@@ -287,6 +303,8 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
     const auto td = Clock::now();
     const detection::DetectionResult r =
         img.colour.empty() ? s.detector->detect(img.grey, hyp_) : s.detector->detect(img.colour, hyp_);
+    // Its gradients are this image's, unless the colour stage computed them around its regions only.
+    gradients_id_ = r.status == detection::DetectionResult::Status::kOk && r.colour_regions < 0 ? search_frame_id_ : 0;
     rep.detect_ms = ms_between(td, Clock::now());
     if (r.status == detection::DetectionResult::Status::kOk) {
       const int n = std::min<int>(r.hypotheses, std::min<int>(p_.hypotheses, static_cast<int>(hyp_.size())));

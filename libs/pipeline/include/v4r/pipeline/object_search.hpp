@@ -43,6 +43,12 @@ struct ObjectSearchParams {
   /// One accepted: the detector is not run on that frame (around the last pose first, then the
   /// whole image).
   double local_accept_evidence = 0.6;
+  /// A refined hypothesis below its accept share but at or above this one is accepted when the
+  /// detector's edge test verifies its pose (detect.verify.accept_score; gradients summed along
+  /// the edge, threshold relative to the frame's noise): under heavy sensor noise the tracker's
+  /// windows raise their thresholds, and the image confirms fewer samples of a pose in plain
+  /// view. >= accept_evidence: off.
+  double edge_test_evidence = 0.4;
   /// A found pose must lie in the detector's view range (detect.views.*: elevation, in-plane
   /// turn, distance) widened by this many degrees (distance: by the ratio 1 + margin / 45),
   /// modulo the model's symmetries: an edge image can fit a turned and farther box as well as
@@ -245,6 +251,11 @@ class ObjectSearch {
   std::vector<Slot> slots_;
   std::vector<SearchReport> reports_;
   std::vector<detection::Hypothesis> hyp_;
+  /// The detector's edge test of a refined pose on this search frame's image (its gradients
+  /// computed once per frame, when first needed).
+  bool edge_test(Slot& s, const CameraImage& img, const geometry::SE3& T);
+  std::uint64_t search_frame_id_ = 0;  // search_frame calls so far
+  std::uint64_t gradients_id_ = 0;     // the call whose image the detector's gradients are of (0: none)
   double last_evidence_ = 0.0;
   double last_leak_ = -1.0;       // the last refined pose's silhouette leak (-1: no colour samples)
   int last_leak_samples_ = 0;
