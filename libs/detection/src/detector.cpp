@@ -298,6 +298,7 @@ DetectionResult Detector::run(std::span<Hypothesis> out) {
     }
     work_.push_back(h);
   }
+  resolve_twins();
   // A pose verified by colour alone (its outline stands out, its edges score below accept_score)
   // is ambiguous when another verified pose, different beyond the symmetries (the same outline
   // turned over, say), scores within colour_ambiguity of it; one verified by its edges, within
@@ -358,13 +359,44 @@ void Detector::verify_stand_out() {
   if (bv.leak_samples == 0) aligner_.measure_leak(frame_colour_, best->T_cam_obj, bv);
   if (bv.leak_samples < v.leak_min_samples || bv.leak < 0.0 || bv.leak > v.stand_out_max_leak) return;
   // Its near-symmetric twins (not among the hypotheses when the search found only one of them)
-  // must score stand_out_margin less too.
+  // must match worse where they differ from it, or else score stand_out_margin less.
   for (const geometry::SE3& S : near_symmetries_) {
-    geometry::SE3 T = best->T_cam_obj * S;
-    aligner_.refine(pyramid_, T);
-    if (aligner_.verify(pyramid_, T).score >= bv.score - v.stand_out_margin) return;
+    geometry::SE3 twin;
+    const int verdict = twin_verdict(best->T_cam_obj, S, twin);
+    if (verdict < 0 || (verdict == 0 && aligner_.verify(pyramid_, twin).score >= bv.score - v.stand_out_margin)) return;
   }
   best->verified = true;
+}
+
+int Detector::twin_verdict(const geometry::SE3& T, const geometry::SE3& S, geometry::SE3& twin) {
+  constexpr int kMinDistinct = 8;  // distinctive samples each, at least
+  twin = T * S;
+  aligner_.refine(pyramid_, twin);
+  if (!(p_.verify.twin_margin > 0.0)) return 0;
+  const EdgeAligner::TwinShares t = aligner_.compare_twins(pyramid_, T, twin, 2.0 * p_.verify.match_distance_px);
+  if (t.na < kMinDistinct || t.nb < kMinDistinct) return 0;
+  if (t.a >= t.b + p_.verify.twin_margin) return 1;
+  if (t.b >= t.a + p_.verify.twin_margin) return -1;
+  return 0;
+}
+
+void Detector::resolve_twins() {
+  if (near_symmetries_.empty() || !(p_.verify.twin_margin > 0.0) || work_.empty()) return;
+  const Hypothesis* top = &work_.front();
+  for (const Hypothesis& h : work_)
+    if (h.verification.score > top->verification.score) top = &h;
+  for (Hypothesis& h : work_) {
+    if (!h.verified && &h != top) continue;
+    for (const geometry::SE3& S : near_symmetries_) {
+      geometry::SE3 twin;
+      if (twin_verdict(h.T_cam_obj, S, twin) >= 0) continue;
+      const bool leak_measured = h.verification.leak_samples > 0;
+      h.T_cam_obj = twin;
+      h.verification = aligner_.verify(pyramid_, twin);
+      if (leak_measured && !frame_colour_.empty()) aligner_.measure_leak(frame_colour_, twin, h.verification);
+      break;
+    }
+  }
 }
 
 }  // namespace v4r::detection

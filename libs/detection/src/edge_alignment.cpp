@@ -32,6 +32,9 @@ EdgeAligner::EdgeAligner(const model::Model& model, const geometry::PinholeCamer
       cos_search_(std::cos(std::min(80.0, 1.5 * p.verify.match_angle_deg) * kDeg)),
       projector_(model, p.templates.crease_angle_deg * kDeg),
       samples_(static_cast<std::size_t>(std::max(16, p.verify.max_samples))),
+      matched_(samples_.size(), 0),
+      twin_px_(samples_.size()),
+      twin_matched_(samples_.size(), 0),
       contrast_(features::SilhouetteContrastParams{.min_group_samples = p.verify.leak_group_samples}) {}
 
 double EdgeAligner::search(const GradientPyramid& g, const Eigen::Vector2d& px, const Eigen::Vector2d& n,
@@ -207,6 +210,7 @@ Verification EdgeAligner::verify(const GradientPyramid& g, const geometry::SE3& 
       sign = dot > 0 ? 1 : -1;
     }
     const bool ok = sign != 0;
+    matched_[i] = ok ? 1 : 0;
     if (s.piece != run_piece) {
       close_run(true);
       piece_samples = 0;
@@ -227,6 +231,44 @@ Verification EdgeAligner::verify(const GradientPyramid& g, const geometry::SE3& 
   v.match_share = static_cast<double>(v.matched) / v.samples;
   v.score = static_cast<double>(v.in_runs) / v.samples;
   return v;
+}
+
+EdgeAligner::TwinShares EdgeAligner::compare_twins(const GradientPyramid& g, const geometry::SE3& T_a,
+                                                  const geometry::SE3& T_b, double px) {
+  TwinShares r;
+  const int na = verify(g, T_a).samples;
+  if (na < p_.min_samples) return r;  // (verify matched none of them)
+  for (int i = 0; i < na; ++i) {
+    twin_px_[static_cast<std::size_t>(i)] = samples_[static_cast<std::size_t>(i)].px;
+    twin_matched_[static_cast<std::size_t>(i)] = matched_[static_cast<std::size_t>(i)];
+  }
+  const int nb = verify(g, T_b).samples;
+  if (nb < p_.min_samples) return r;
+  const double px2 = px * px;
+  const auto near_any = [px2](const Eigen::Vector2d& q, const auto& pts, int n) {
+    for (int j = 0; j < n; ++j)
+      if ((pts[static_cast<std::size_t>(j)] - q).squaredNorm() <= px2) return true;
+    return false;
+  };
+  // (samples_ holds b's samples now; a's positions are in twin_px_.)
+  struct BPositions {
+    const std::vector<EdgeSample>& s;
+    const Eigen::Vector2d& operator[](std::size_t i) const { return s[i].px; }
+  } b_px{samples_};
+  int ma = 0, mb = 0;
+  for (int i = 0; i < na; ++i) {
+    if (near_any(twin_px_[static_cast<std::size_t>(i)], b_px, nb)) continue;
+    ++r.na;
+    ma += twin_matched_[static_cast<std::size_t>(i)];
+  }
+  for (int i = 0; i < nb; ++i) {
+    if (near_any(samples_[static_cast<std::size_t>(i)].px, twin_px_, na)) continue;
+    ++r.nb;
+    mb += matched_[static_cast<std::size_t>(i)];
+  }
+  r.a = r.na > 0 ? static_cast<double>(ma) / r.na : 0.0;
+  r.b = r.nb > 0 ? static_cast<double>(mb) / r.nb : 0.0;
+  return r;
 }
 
 void EdgeAligner::measure_leak(const image::ColourView& colour, const geometry::SE3& T, Verification& v) {

@@ -102,12 +102,18 @@ struct VerifyParams {
   /// symmetries) scores at least stand_out_margin less, and its silhouette leaks at most
   /// stand_out_max_leak (colour images only). A partly hidden object: its visible edges match,
   /// nothing else in the image comes close. stand_out_score >= accept_score: off.
-  double stand_out_score = 0.65;
+  double stand_out_score = 0.6;
   double stand_out_margin = 0.1;
   double stand_out_max_leak = 0.5;
   /// Near symmetries (detection::near_symmetries) within this share of the model's bounding-box
   /// diagonal: a pose stands out only when its twin under each scores stand_out_margin less (0: off).
   double near_symmetry = 0.05;
+  /// A verified (or the best) pose and its twin under a near symmetry are compared on the edge
+  /// samples where they differ (EdgeAligner::compare_twins, farther than 2 x match_distance_px
+  /// apart): the twin replaces the pose when the share of its distinctive samples that match
+  /// exceeds the pose's by this; a pose stands out from its twin (stand_out_*) when its share
+  /// exceeds the twin's by this (0: the twins are not compared).
+  double twin_margin = 0.15;
 };
 
 /// \brief The colour stage (the paper's sponge): used when the model's faces carry a colour

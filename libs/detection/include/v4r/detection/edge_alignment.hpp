@@ -1,6 +1,7 @@
 // v4r - robust model-based object tracking. MIT licence.
 #pragma once
 
+#include <cstdint>
 #include <span>
 #include <vector>
 
@@ -52,6 +53,14 @@ class EdgeAligner {
   /// object's outline, where the object differs from its surroundings, leaks little, occluded
   /// or not; a pose fitted to background edges, or nested in the object, leaks most samples.
   void measure_leak(const image::ColourView& colour, const geometry::SE3& T_cam_obj, Verification& v);
+  /// \brief Two poses of nearly the same outline (a pose and its twin under a near symmetry)
+  /// told apart by the edge samples where they differ: of each pose's samples farther than
+  /// `px` from every sample of the other pose, the share that matches a gradient (as in verify).
+  struct TwinShares {
+    double a = 0.0, b = 0.0;  ///< matched share of a's distinctive samples, of b's
+    int na = 0, nb = 0;       ///< distinctive samples of a, of b
+  };
+  TwinShares compare_twins(const GradientPyramid& g, const geometry::SE3& T_a, const geometry::SE3& T_b, double px);
 
  private:
   /// The first detect.verify.refine_samples of the sample buffer.
@@ -71,6 +80,9 @@ class EdgeAligner {
   double cos_match_, cos_search_;
   EdgeProjector projector_;
   std::vector<EdgeSample> samples_;
+  std::vector<std::uint8_t> matched_;     // verify: per sample of samples_, matched or not
+  std::vector<Eigen::Vector2d> twin_px_;  // compare_twins: the first pose's sample positions
+  std::vector<std::uint8_t> twin_matched_;
   features::SilhouetteContrast contrast_;
 };
 
