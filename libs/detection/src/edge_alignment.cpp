@@ -244,25 +244,26 @@ EdgeAligner::TwinShares EdgeAligner::compare_twins(const GradientPyramid& g, con
   }
   const int nb = verify(g, T_b).samples;
   if (nb < p_.min_samples) return r;
+  // samples_ and matched_ hold b's samples now, twin_px_ and twin_matched_ a's.
   const double px2 = px * px;
-  const auto near_any = [px2](const Eigen::Vector2d& q, const auto& pts, int n) {
-    for (int j = 0; j < n; ++j)
-      if ((pts[static_cast<std::size_t>(j)] - q).squaredNorm() <= px2) return true;
+  const auto near_a = [&](const Eigen::Vector2d& q) {
+    for (int j = 0; j < na; ++j)
+      if ((twin_px_[static_cast<std::size_t>(j)] - q).squaredNorm() <= px2) return true;
     return false;
   };
-  // (samples_ holds b's samples now; a's positions are in twin_px_.)
-  struct BPositions {
-    const std::vector<EdgeSample>& s;
-    const Eigen::Vector2d& operator[](std::size_t i) const { return s[i].px; }
-  } b_px{samples_};
+  const auto near_b = [&](const Eigen::Vector2d& q) {
+    for (int j = 0; j < nb; ++j)
+      if ((samples_[static_cast<std::size_t>(j)].px - q).squaredNorm() <= px2) return true;
+    return false;
+  };
   int ma = 0, mb = 0;
   for (int i = 0; i < na; ++i) {
-    if (near_any(twin_px_[static_cast<std::size_t>(i)], b_px, nb)) continue;
+    if (near_b(twin_px_[static_cast<std::size_t>(i)])) continue;
     ++r.na;
     ma += twin_matched_[static_cast<std::size_t>(i)];
   }
   for (int i = 0; i < nb; ++i) {
-    if (near_any(samples_[static_cast<std::size_t>(i)].px, twin_px_, na)) continue;
+    if (near_a(samples_[static_cast<std::size_t>(i)].px)) continue;
     ++r.nb;
     mb += matched_[static_cast<std::size_t>(i)];
   }
