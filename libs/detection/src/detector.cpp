@@ -382,11 +382,15 @@ int Detector::twin_verdict(const geometry::SE3& T, const geometry::SE3& S, geome
 
 void Detector::resolve_twins() {
   if (near_symmetries_.empty() || !(p_.verify.twin_margin > 0.0) || work_.empty()) return;
-  const Hypothesis* top = &work_.front();
-  for (const Hypothesis& h : work_)
+  // The best-scoring hypothesis and the best verified one (a refinement and two edge tests per
+  // near symmetry each: a model with many, a near cube, would otherwise cost much).
+  const Hypothesis *top = &work_.front(), *top_verified = nullptr;
+  for (const Hypothesis& h : work_) {
     if (h.verification.score > top->verification.score) top = &h;
+    if (h.verified && (top_verified == nullptr || h.verification.score > top_verified->verification.score)) top_verified = &h;
+  }
   for (Hypothesis& h : work_) {
-    if (!h.verified && &h != top) continue;
+    if (&h != top && &h != top_verified) continue;
     for (const geometry::SE3& S : near_symmetries_) {
       geometry::SE3 twin;
       if (twin_verdict(h.T_cam_obj, S, twin) >= 0) continue;

@@ -124,8 +124,8 @@ class Detector {
   /// With no hypothesis verified, verifies the best-scoring one when it stands out
   /// (detect.verify.stand_out_*).
   void verify_stand_out();
-  /// Replaces each verified hypothesis, and the best-scoring one, by its near-symmetric twin when
-  /// the twin's distinctive edge samples match better (detect.verify.twin_margin).
+  /// Replaces the best-scoring hypothesis, and the best verified one, by its near-symmetric twin
+  /// when the twin's distinctive edge samples match better (detect.verify.twin_margin).
   void resolve_twins();
   /// +1: T's distinctive edge samples match by twin_margin more than those of its twin under S
   /// (refined into `twin`); -1: the twin's do; 0: neither, or too few distinctive samples.
