@@ -90,7 +90,7 @@ void add_params(ParamRegistry& r, DetectorParams& p) {
   r.add("detect.verify.stand_out_margin", &f.stand_out_margin, 0.0, 1.0, "", "... every distinct pose scores at least this less");
   r.add("detect.verify.stand_out_max_leak", &f.stand_out_max_leak, 0.0, 1.0, "", "... and its silhouette leaks at most this (colour images)");
   r.add("detect.verify.near_symmetry", &f.near_symmetry, 0.0, 0.5, "",
-        "... and its twin under each near symmetry within this share of the model's diagonal scores stand_out_margin less (0: off)");
+        "near symmetries within this share of the model's diagonal give a pose twins it must beat (twin_margin; 0: none)");
   r.add("detect.verify.twin_margin", &f.twin_margin, 0.0, 1.0, "",
         "a pose and its near-symmetric twin: the one whose distinctive edge samples match by this share more is kept (0: off)");
   auto& c = p.colour;

@@ -106,13 +106,14 @@ struct VerifyParams {
   double stand_out_margin = 0.1;
   double stand_out_max_leak = 0.5;
   /// Near symmetries (detection::near_symmetries) within this share of the model's bounding-box
-  /// diagonal: a pose stands out only when its twin under each scores stand_out_margin less (0: off).
+  /// diagonal: each gives a pose a twin, compared with it by twin_margin (0: none).
   double near_symmetry = 0.05;
-  /// A verified (or the best) pose and its twin under a near symmetry are compared on the edge
-  /// samples where they differ (EdgeAligner::compare_twins, farther than 2 x match_distance_px
+  /// The best verified and the best-scoring pose are each compared with their twin under every
+  /// near symmetry on the edge samples where they differ (EdgeAligner::compare_twins, farther than 2 x match_distance_px
   /// apart): the twin replaces the pose when the share of its distinctive samples that match
   /// exceeds the pose's by this; a pose stands out from its twin (stand_out_*) when its share
-  /// exceeds the twin's by this (0: the twins are not compared).
+  /// exceeds the twin's by this, or, with too few such samples or neither ahead, when the twin
+  /// scores stand_out_margin less (0: the twins are not compared, only scored).
   double twin_margin = 0.15;
 };
 
