@@ -134,18 +134,18 @@ void Detector::scan_coarse(std::size_t k, int ilo, int jlo, int ihi, int jhi, in
       for (int i = 0; i < aw; ++i) dst[i] = static_cast<std::uint8_t>(dst[i] + src[i]);
     }
   }
-  int best = -1, bi = 0;
+  // The best sum first (a loop the compiler vectorises), its first anchor only for a template
+  // that enters the candidates: most do not.
   const int n = aw * ah;
-  for (int i = 0; i < n; ++i)
-    if (acc_[static_cast<std::size_t>(i)] > best) {
-      best = acc_[static_cast<std::size_t>(i)];
-      bi = i;
-    }
+  std::uint8_t top = 0;
+  for (int i = 0; i < n; ++i) top = std::max(top, acc_[static_cast<std::size_t>(i)]);
+  const int best = top;
   const int min_score = static_cast<int>(std::ceil(p_.search.coarse_min_score * 4.0 * t.count));
   if (best < min_score) return;
   // Scores compared as shares of each template's best possible score (x1000).
   const int share = static_cast<int>(1000.0 * best / (4.0 * t.count));
   if (coarse_.size() >= K && share <= worst) return;
+  const int bi = static_cast<int>(std::find(acc_.begin(), acc_.begin() + n, top) - acc_.begin());
   Candidate c{share, static_cast<std::uint32_t>(k), static_cast<std::int16_t>(2 * (ilo + bi % aw)),
               static_cast<std::int16_t>(2 * (jlo + bi / aw))};
   if (coarse_.size() < K) {
@@ -185,30 +185,34 @@ int Detector::score_fine(std::uint32_t view, int cx, int cy, int& bx, int& by) c
   const OrientationLevel& L = pyramid_.fine();
   const int w = L.width, h = L.height, r = std::clamp(p_.search.fine_window, 0, kMaxFineWindow);
   const Template& t = ts.fine.templates[view];
-  if (t.count < 8) return -1;
+  if (t.count < 8 || t.count > 63) return -1;  // detect.templates.fine_features: 8 .. 63
   // The anchors of the window whose features all lie inside the image.
   const int ylo = std::max(cy - r, -static_cast<int>(t.y0)), yhi = std::min(cy + 1 + r, h - 1 - t.y1);
   const int xlo = std::max(cx - r, -static_cast<int>(t.x0)), xhi = std::min(cx + 1 + r, w - 1 - t.x1);
   if (ylo > yhi || xlo > xhi) return -1;
   const int nx = xhi - xlo + 1, ny = yhi - ylo + 1;
-  // Feature by feature over the whole window (rows of adjacent response bytes), then the best
-  // anchor in row order (the first of equal sums).
-  std::array<int, kMaxFineAnchors> acc;
-  std::fill_n(acc.begin(), nx * ny, 0);
+  // Feature by feature over the whole window, in blocks of kResponsePadding adjacent anchors (a
+  // loop the compiler vectorises; the response maps are padded for the last block), then the best
+  // anchor in row order (the first of equal sums). Sums fit a byte: at most 63 features of 4.
+  constexpr int kBlock = kResponsePadding;
+  const int blocks = (nx + kBlock - 1) / kBlock, stride = blocks * kBlock;
+  std::array<std::uint8_t, kMaxFineAnchors * 2> acc;  // ny rows of `stride` sums
+  std::fill_n(acc.begin(), ny * stride, std::uint8_t{0});
   for (std::uint32_t f = t.first; f < t.first + t.count; ++f) {
     const Feature& ft = ts.fine.features[f];
     const std::uint8_t* base = L.response[ft.orientation].data() + static_cast<std::size_t>(ylo + ft.y) * w + (xlo + ft.x);
     for (int iy = 0; iy < ny; ++iy) {
       const std::uint8_t* row = base + static_cast<std::size_t>(iy) * w;
-      int* a = acc.data() + iy * nx;
-      for (int ix = 0; ix < nx; ++ix) a[ix] += row[ix];
+      std::uint8_t* a = acc.data() + iy * stride;
+      for (int b = 0; b < stride; b += kBlock)
+        for (int l = 0; l < kBlock; ++l) a[b + l] = static_cast<std::uint8_t>(a[b + l] + row[b + l]);
     }
   }
   int best = -1;
   for (int iy = 0; iy < ny; ++iy)
     for (int ix = 0; ix < nx; ++ix)
-      if (acc[static_cast<std::size_t>(iy * nx + ix)] > best) {
-        best = acc[static_cast<std::size_t>(iy * nx + ix)];
+      if (acc[static_cast<std::size_t>(iy * stride + ix)] > best) {
+        best = acc[static_cast<std::size_t>(iy * stride + ix)];
         bx = xlo + ix;
         by = ylo + iy;
       }

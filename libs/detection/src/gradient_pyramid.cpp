@@ -84,7 +84,7 @@ void allocate(OrientationLevel& l, int w, int h, int spread, bool linear) {
   l.image.assign(n * 3, 0);
   l.bits.assign(n, 0);
   l.spread_bits.assign(n, 0);
-  for (auto& r : l.response) r.assign(n, 0);
+  for (auto& r : l.response) r.assign(n + kResponsePadding, 0);
   l.lin_width = (w + 1) / 2;
   l.lin_height = (h + 1) / 2;
   if (linear)

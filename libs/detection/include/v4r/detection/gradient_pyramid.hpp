@@ -22,6 +22,9 @@ int quantise_orientation(double x, double y);
 /// neighbours (22.5 degrees apart), else 0.
 int orientation_similarity(int a, int b);
 
+/// Zero bytes after each response map: block reads from a row's last pixels stay inside it.
+inline constexpr int kResponsePadding = 16;
+
 /// \brief One level of the orientation pyramid: quantised orientations, their spread over a
 /// square neighbourhood and the response map per orientation (uint8 per pixel, the best
 /// similarity of the template orientation to any orientation spread onto that pixel).
@@ -31,7 +34,9 @@ struct OrientationLevel {
   std::vector<std::uint8_t> image;   ///< this level's pixels (1 or 3 channels, interleaved)
   std::vector<std::uint8_t> bits;    ///< per pixel: 1 << orientation, 0 when the gradient is weak
   std::vector<std::uint8_t> spread_bits;
-  std::array<std::vector<std::uint8_t>, kOrientations> response;  ///< width * height each
+  /// width * height each, then kResponsePadding zeros (a matcher may read a block of
+  /// kResponsePadding bytes from any pixel)
+  std::array<std::vector<std::uint8_t>, kOrientations> response;
   /// Response maps split into the four 2x2 phases (stride-2 evaluation with contiguous rows):
   /// Only at the coarse level: linear[o][py * 2 + px] has lin_width x lin_height pixels, entry (i, j) = response (2i+px, 2j+py).
   std::array<std::array<std::vector<std::uint8_t>, 4>, kOrientations> linear;
