@@ -28,9 +28,9 @@ import sys
 
 import numpy as np
 
+from honest_state_eval import CONDITIONS, OBJECTS, quat_to_R
+
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-OBJECTS = ('box', 'mockup', 'flange')
-CONDITIONS = ('regular', 'light', 'noise', 'clutter', 'occlusion', 'specular', 'blur', 'fast')
 
 
 def cao_points(path):
@@ -100,18 +100,10 @@ def symmetries(points, tol=1e-4):
     return found
 
 
-def quat_to_r(w, x, y, z):
-    n = math.sqrt(w * w + x * x + y * y + z * z)
-    w, x, y, z = w / n, x / n, y / n, z / n
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
-
-
 def pose(row, keys=('tx', 'ty', 'tz', 'qw', 'qx', 'qy', 'qz')):
     v = [float(row[k]) for k in keys]
     t = np.eye(4)
-    t[:3, :3] = quat_to_r(*v[3:])
+    t[:3, :3] = quat_to_R(np.array(v[3:]))
     t[:3, 3] = v[:3]
     return t
 
