@@ -75,7 +75,7 @@ def rot(axis, angle):
 
 
 def symmetries(points, tol=1e-4):
-    """4x4 transforms S (object frame) with S * points == points as a set."""
+    """4x4 transforms S (object frame) with S * points == points as a set, the identity first."""
     centre = 0.5 * (points.min(0) + points.max(0))
     cands = []
     for perm in itertools.permutations(range(3)):
@@ -131,8 +131,7 @@ def run(seq_dir, args):
         rc = subprocess.call(cmd, stdout=log, stderr=subprocess.STDOUT)
     if rc != 0:
         return None
-    syms = [np.eye(4)] + [s for s in symmetries(cao_points(os.path.join(seq_dir, 'model.cao')))
-                          if not np.allclose(s, np.eye(4))]
+    syms = symmetries(cao_points(os.path.join(seq_dir, 'model.cao')))  # the identity among them
     with open(os.path.join(seq_dir, 'gt_poses.csv')) as f:
         gt = {int(r['frame']): pose(r) for r in csv.DictReader(f)}
     lock, ok_after, n_after, false = -1, 0, 0, 0
