@@ -7,13 +7,16 @@
 //   build/bin/v4r_detection_eval [--images N] [--empty N] [--models box,ship,...] [--scenes plain,clutter,...]
 //                                [--set detect.x=y ...]   (V4R_EVAL_DEBUG=1|2|3: per-image diagnosis on stderr)
 //   build/bin/v4r_detection_eval --sponge N   (the colour stage: N sponge images with and without it)
+//   build/bin/v4r_detection_eval --sequences DIR,DIR,... [--every 10]   (frames another renderer made)
 //   (one core: taskset -c 1 build/bin/v4r_detection_eval)
 #include <algorithm>
 #include <array>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <fstream>
 #include <memory>
+#include <span>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -26,6 +29,7 @@
 #include "v4r/detection/gradient_pyramid.hpp"
 #include "v4r/detection/edge_projection.hpp"
 #include "v4r/detection/symmetry.hpp"
+#include "v4r/io/camera_io.hpp"
 #include "v4r/io/frame_source.hpp"
 #include "v4r/model/cao_reader.hpp"
 #include "v4r/model/mesh_reader.hpp"
@@ -55,6 +59,131 @@ std::shared_ptr<const model::Model> builtin(const std::string& name) {
     return std::make_shared<model::Model>(std::move(*m));
   }
   return nullptr;
+}
+
+/// V4R_EVAL_DEBUG: why one image was or was not detected. The truth's own score (as given and
+/// refined), the template views nearest the truth and their scores at its anchor, where the first
+/// coarse candidate and picked hypothesis near the truth ranked, refinements from perturbed truths,
+/// each hypothesis (level 2) and an image of the truth's edge samples (level 3).
+void diagnose(Detector& det, const TemplateSet& set, const model::Model& m, const DetectorParams& params,
+              const geometry::PinholeCamera& cam, const geometry::SE3& T, const std::vector<geometry::SE3>& sym,
+              const DetectionResult& r, std::span<const Hypothesis> hyp, const cv::Mat& img, const std::string& label) {
+  std::string file_label = label;
+  for (char& c : file_label)
+    if (c == ' ' || c == '#' || c == '/') c = '_';
+  geometry::SE3 Tt = T;
+  const Verification vt = det.verify(T);
+  det.refine(Tt);
+  const Verification vr = det.verify(Tt);
+  const PoseError er = symmetric_pose_error(Tt, T, sym);
+  fmt::print(stderr, "{}: truth share {:.2f} score {:.2f} ({} samples), refined from truth {:.2f} err {:.3f} m {:.1f} deg; cands {}\n",
+             label, vt.match_share, vt.score, vt.samples, vr.score, er.translation, er.rotation * 57.3,
+             r.coarse_candidates);
+  {
+    // Oracle: the template views nearest the truth and their scores at the true anchor.
+    const TemplateSet& tsx = set;
+    const Eigen::Vector3d c_cam = T * tsx.centre;
+    const Eigen::Vector2d a = cam.project(c_cam);
+    const Eigen::Vector3d ray = c_cam.normalized();
+    const geometry::SE3 Tv = geometry::SE3(Eigen::Quaterniond::FromTwoVectors(ray, Eigen::Vector3d::UnitZ()), Eigen::Vector3d::Zero()) * T;
+    double best_d = 1e9;
+    std::uint32_t best_v = 0;
+    for (std::uint32_t vi = 0; vi < tsx.views.size(); ++vi) {
+      const double d = geometry::rotation_angle_between(tsx.views[vi].T_cam_obj, Tv) * 57.3 +
+                       100.0 * std::abs(std::log(tsx.views[vi].T_cam_obj.translation().z() / Tv.translation().z()));
+      if (d < best_d) { best_d = d; best_v = vi; }
+    }
+    const auto score_at = [&](const TemplateLevel& lvl, const OrientationLevel& L, const Template& t, double ax, double ay) {
+      int best = 0;
+      for (int dy = -2; dy <= 2; ++dy) for (int dx = -2; dx <= 2; ++dx) {
+        int sc = 0;
+        const int x0 = static_cast<int>(std::lround(ax)) + dx, y0 = static_cast<int>(std::lround(ay)) + dy;
+        for (std::uint32_t f = t.first; f < t.first + t.count; ++f) {
+          const Feature& ft = lvl.features[f];
+          const int x = x0 + ft.x, y = y0 + ft.y;
+          if (x < 0 || y < 0 || x >= L.width || y >= L.height) continue;
+          sc += L.response[ft.orientation][static_cast<std::size_t>(y) * L.width + x];
+        }
+        best = std::max(best, sc);
+      }
+      return best / (4.0 * t.count);
+    };
+    double cbest = 0; std::uint32_t cbv = 0;
+    for (std::uint32_t k2 = 0; k2 < tsx.coarse_views.size(); ++k2) {
+      const double d = geometry::rotation_angle_between(tsx.views[tsx.coarse_views[k2]].T_cam_obj, Tv) * 57.3 +
+                       100.0 * std::abs(std::log(tsx.views[tsx.coarse_views[k2]].T_cam_obj.translation().z() / Tv.translation().z()));
+      if (k2 == 0 || d < cbest) { cbest = d; cbv = k2; }
+    }
+    const double fs = score_at(tsx.fine, det.gradients().fine(), tsx.fine.templates[best_v], a.x() * 0.5 - 0.25, a.y() * 0.5 - 0.25);
+    const double cs = score_at(tsx.coarse, det.gradients().coarse(), tsx.coarse.templates[cbv], a.x() * 0.25 - 0.375, a.y() * 0.25 - 0.375);
+    fmt::print(stderr, "   oracle: nearest fine view dist {:.1f} score {:.2f}; nearest coarse dist {:.1f} score {:.2f}\n", best_d, fs, cbest, cs);
+    // Where the truth was lost: the first coarse candidate (ranked by its probe) and picked
+    // hypothesis near the true anchor (12 px), and near it with a view within 20 degrees.
+    for (const bool picked : {false, true}) {
+      int near_pos = -1, near_both = -1;
+      for (std::size_t i = 0; i < det.candidate_count(picked); ++i) {
+        const auto c = det.candidate(picked, i);
+        const double d = std::hypot(2.0 * c.x + 0.5 - a.x(), 2.0 * c.y + 0.5 - a.y());
+        if (d > 12.0) continue;
+        if (near_pos < 0) near_pos = static_cast<int>(i);
+        if (near_both < 0 && geometry::rotation_angle_between(tsx.views[c.view].T_cam_obj, Tv) < 20.0 / 57.3)
+          near_both = static_cast<int>(i);
+      }
+      fmt::print(stderr, "   {} ({}): first near the truth #{}, near with its view #{}\n", picked ? "picked" : "coarse",
+                 det.candidate_count(picked), near_pos, near_both);
+    }
+  }
+  for (const double dz : {0.92, 1.08}) {
+    geometry::SE3 Tp = T;
+    Tp.set_translation(T.translation() * dz);
+    det.refine(Tp);
+    const PoseError ep = symmetric_pose_error(Tp, T, sym);
+    fmt::print(stderr, "   depth x{:.2f}: refined err {:.3f} m {:.1f} deg score {:.2f}\n", dz, ep.translation, ep.rotation * 57.3, det.verify(Tp).score);
+  }
+  for (const double ang : {0.1, -0.1}) {
+    geometry::SE3 Tp = T;
+    Tp = T * geometry::SE3::from_rvec(Eigen::Vector3d::Zero(), Eigen::Vector3d(ang, 0.5 * ang, 0));
+    det.refine(Tp);
+    const PoseError ep = symmetric_pose_error(Tp, T, sym);
+    fmt::print(stderr, "   rot {:.2f}: refined err {:.3f} m {:.1f} deg score {:.2f}\n", ang, ep.translation, ep.rotation * 57.3, det.verify(Tp).score);
+  }
+  double best_wrong = 0.0, best_right = 0.0;
+  (void)vr;
+  for (int h = 0; h < r.hypotheses; ++h) {
+    const PoseError e = symmetric_pose_error(hyp[h].T_cam_obj, T, sym);
+    if (e.translation > 0.05 || e.rotation > 0.0873) best_wrong = std::max(best_wrong, hyp[h].verification.score);
+    else best_right = std::max(best_right, hyp[h].verification.score);
+    const PoseError e0 = symmetric_pose_error(hyp[h].T_template, T, sym);
+    if (std::getenv("V4R_EVAL_DEBUG")[0] == '2') fmt::print(stderr, "   h{} tpl {:.2f} (err {:.3f} m {:.1f} deg) share {:.2f} score {:.2f} leak {:.2f} ({}) err {:.3f} m {:.1f} deg\n", h, hyp[h].template_score,
+               e0.translation, e0.rotation * 57.3, hyp[h].verification.match_share, hyp[h].verification.score,
+               hyp[h].verification.leak, hyp[h].verification.leak_samples, e.translation, e.rotation * 57.3);
+  }
+  if (std::getenv("V4R_EVAL_DEBUG")[0] == '3') {
+    cv::Mat dbg = img.clone();
+    EdgeProjector proj(m, params.templates.crease_angle_deg * 3.14159265 / 180.0);
+    std::vector<EdgeSample> smp(400);
+    const std::size_t ns = proj.sample(T, cam, 5.0, smp);
+    const auto& g = det.gradients();
+    for (std::size_t q = 0; q < ns; ++q) {
+      const EdgeSample& e = smp[q];
+      const int x = static_cast<int>(std::lround(e.px.x())), y = static_cast<int>(std::lround(e.px.y()));
+      const double gx = g.gx(x, y), gy = g.gy(x, y);
+      const double mag = std::sqrt(gx * gx + gy * gy) / 8.0;
+      if (mag <= params.verify.min_gradient && q % 10 == 0) {
+        fmt::print(stderr, "  red sample ({:.1f},{:.1f}) n ({:.2f},{:.2f}) mag {:.1f}; along normal:", e.px.x(), e.px.y(), e.normal.x(), e.normal.y(), mag);
+        for (int t = -3; t <= 3; ++t) {
+          const int xx = static_cast<int>(std::lround(e.px.x() + t * e.normal.x())), yy = static_cast<int>(std::lround(e.px.y() + t * e.normal.y()));
+          const cv::Vec3b c = img.at<cv::Vec3b>(yy, xx);
+          fmt::print(stderr, " [{} g=({},{}) I={}]", t, g.gx(xx, yy), g.gy(xx, yy), int(c[1]));
+        }
+        fmt::print(stderr, "\n");
+      }
+      cv::circle(dbg, cv::Point(x, y), 2, mag > params.verify.min_gradient ? cv::Scalar(0, 255, 0) : cv::Scalar(0, 0, 255), 1);
+    }
+    cv::imwrite(fmt::format("/tmp/det_dbg_{}.png", file_label), dbg);
+  }
+  fmt::print(stderr, "   best right {:.2f} best wrong {:.2f} {}\n", best_right, best_wrong,
+             best_right > best_wrong ? "" : (best_right == 0.0 ? "NOT FOUND" : "OUTRANKED"));
 }
 
 /// Issue 10 item 3 (the paper's sponge): `n` random poses of the green sponge-like box on a
@@ -131,10 +260,84 @@ int sponge_eval(int n, const DetectorParams& params, const geometry::PinholeCame
   return 0;
 }
 
+/// Frames of sequences that another renderer made (the development benchmark in
+/// ../shared/bench/: per folder model.cao, camera.yaml, frames/NNNNNN.png, gt_poses.csv as
+/// frame,tx,ty,tz,qw,qx,qy,qz): every `every`-th frame searched from no pose, success (the best
+/// verified pose within 5 cm / 5 degrees modulo the model's symmetries) and wrong verified poses per
+/// sequence. Templates are built per sequence for its model and camera.
+int sequence_eval(const std::vector<std::string>& dirs, int every, const DetectorParams& params) {
+  fmt::print("sequence,images,success,success_rate,verified_wrong,median_ms,p95_ms\n");
+  int total = 0, total_ok = 0, total_wrong = 0;
+  std::vector<double> all_ms;
+  for (const std::string& dir : dirs) {
+    auto mm = model::load_cao(dir + "/model.cao");
+    auto cam = io::load_camera(dir + "/camera.yaml");
+    if (!mm || !cam) {
+      fmt::print(stderr, "{}: {}\n", dir, !mm ? mm.error().to_string() : cam.error().to_string());
+      return 1;
+    }
+    auto m = std::make_shared<const model::Model>(std::move(*mm));
+    auto ts = build_templates(*m, *cam, params);
+    if (!ts) {
+      fmt::print(stderr, "{}: {}\n", dir, ts.error().to_string());
+      return 1;
+    }
+    auto set = std::make_shared<const TemplateSet>(std::move(*ts));
+    const auto sym = model_symmetries(*m);
+    Detector det(m, set, *cam, params);
+    std::array<Hypothesis, 16> hyp;
+    std::ifstream gt(dir + "/gt_poses.csv");
+    std::string line;
+    std::getline(gt, line);  // header
+    int n = 0, ok = 0, wrong = 0;
+    std::vector<double> ms;
+    while (std::getline(gt, line)) {
+      int frame = 0;
+      double tx = 0, ty = 0, tz = 0, qw = 1, qx = 0, qy = 0, qz = 0;
+      if (std::sscanf(line.c_str(), "%d,%lf,%lf,%lf,%lf,%lf,%lf,%lf", &frame, &tx, &ty, &tz, &qw, &qx, &qy, &qz) != 8) {
+        fmt::print(stderr, "{}/gt_poses.csv: cannot read the line '{}'\n", dir, line);
+        return 1;
+      }
+      if (frame % every != 0) continue;
+      const std::string path = fmt::format("{}/frames/{:06d}.png", dir, frame);
+      const cv::Mat img = cv::imread(path, cv::IMREAD_COLOR);
+      if (img.empty()) {
+        fmt::print(stderr, "{}: cannot read the image\n", path);
+        return 1;
+      }
+      const geometry::SE3 T(Eigen::Quaterniond(qw, qx, qy, qz).normalized(), Eigen::Vector3d(tx, ty, tz));
+      const DetectionResult r = det.detect(io::as_colour_view(img), hyp);
+      ms.push_back(r.total_ms);
+      all_ms.push_back(r.total_ms);
+      ++n;
+      if (std::getenv("V4R_EVAL_DEBUG"))
+        diagnose(det, *set, *m, params, *cam, T, sym, r, hyp, img, fmt::format("{} #{}", dir, frame));
+      if (r.verified > 0) {
+        const PoseError e = symmetric_pose_error(hyp[0].T_cam_obj, T, sym);
+        if (e.translation <= 0.05 && e.rotation <= 5.0 * 3.14159265358979 / 180.0) ++ok;
+        else ++wrong;
+      }
+    }
+    std::string name = dir;
+    while (!name.empty() && name.back() == '/') name.pop_back();
+    name = name.substr(name.find_last_of('/') + 1);
+    fmt::print("{},{},{},{:.3f},{},{:.1f},{:.1f}\n", name, n, ok, n ? static_cast<double>(ok) / n : 0.0, wrong, percentile(ms, 0.5),
+               percentile(ms, 0.95));
+    std::fflush(stdout);
+    total += n;
+    total_ok += ok;
+    total_wrong += wrong;
+  }
+  fmt::print("all,{},{},{:.3f},{},{:.1f},{:.1f}\n", total, total_ok, total ? static_cast<double>(total_ok) / total : 0.0, total_wrong,
+             percentile(all_ms, 0.5), percentile(all_ms, 0.95));
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
-  int images = 40, empty = 100, sponge = 0;
+  int images = 40, empty = 100, sponge = 0, every = 10;
+  std::vector<std::string> sequence_dirs;
   std::string models_arg = "box,ship,flange,section,mesh";
   std::vector<std::string> sets;
   std::string scenes_arg = "all";
@@ -144,6 +347,10 @@ int main(int argc, char** argv) {
   app.add_option("--models", models_arg, "comma-separated: box, ship, flange, section, mesh");
   app.add_option("--scenes", scenes_arg, "comma-separated: plain, textured, clutter, noise, blur, occlusion30, or all");
   app.add_option("--set", sets, "a detector parameter: --set detect.x=y (repeatable)");
+  app.add_option("--sequences", sequence_dirs,
+                 "only frames of sequences another renderer made: comma-separated folders of the development benchmark")
+      ->delimiter(',');
+  app.add_option("--every", every, "with --sequences: every this-many-th frame")->check(CLI::PositiveNumber);
   app.add_option("--sponge", sponge, "only the colour stage: this many sponge images with and without it")
       ->check(CLI::NonNegativeNumber);
   CLI11_PARSE(app, argc, argv);
@@ -163,6 +370,7 @@ int main(int argc, char** argv) {
     }
   }
   if (sponge > 0) return sponge_eval(sponge, params, cam);
+  if (!sequence_dirs.empty()) return sequence_eval(sequence_dirs, every, params);
   const std::array<scenes::Scene, 6> scenes{scenes::Scene::kPlain, scenes::Scene::kTextured, scenes::Scene::kClutter,
                                              scenes::Scene::kNoise, scenes::Scene::kBlur, scenes::Scene::kOcclusion};
   std::vector<double> all_ms;
@@ -219,121 +427,8 @@ int main(int argc, char** argv) {
         search_ms.push_back(r.search_ms);
         refine_ms.push_back(r.refine_ms);
         all_ms.push_back(r.total_ms);
-        if (std::getenv("V4R_EVAL_DEBUG")) {
-          geometry::SE3 Tt = T;
-          const Verification vt = det.verify(T);
-          det.refine(Tt);
-          const Verification vr = det.verify(Tt);
-          const PoseError er = symmetric_pose_error(Tt, T, sym);
-          fmt::print(stderr, "{} #{}: truth share {:.2f} score {:.2f} ({} samples), refined from truth {:.2f} err {:.3f} m {:.1f} deg; cands {}\n",
-                     scenes::scene_name(scenes[si]), k, vt.match_share, vt.score, vt.samples, vr.score, er.translation, er.rotation * 57.3,
-                     r.coarse_candidates);
-          {
-            // Oracle: the template views nearest the truth and their scores at the true anchor.
-            const TemplateSet& tsx = *set;
-            const Eigen::Vector3d c_cam = T * tsx.centre;
-            const Eigen::Vector2d a = cam.project(c_cam);
-            const Eigen::Vector3d ray = c_cam.normalized();
-            const geometry::SE3 Tv = geometry::SE3(Eigen::Quaterniond::FromTwoVectors(ray, Eigen::Vector3d::UnitZ()), Eigen::Vector3d::Zero()) * T;
-            double best_d = 1e9;
-            std::uint32_t best_v = 0;
-            for (std::uint32_t vi = 0; vi < tsx.views.size(); ++vi) {
-              const double d = geometry::rotation_angle_between(tsx.views[vi].T_cam_obj, Tv) * 57.3 +
-                               100.0 * std::abs(std::log(tsx.views[vi].T_cam_obj.translation().z() / Tv.translation().z()));
-              if (d < best_d) { best_d = d; best_v = vi; }
-            }
-            const auto score_at = [&](const TemplateLevel& lvl, const OrientationLevel& L, const Template& t, double ax, double ay) {
-              int best = 0;
-              for (int dy = -2; dy <= 2; ++dy) for (int dx = -2; dx <= 2; ++dx) {
-                int sc = 0;
-                const int x0 = static_cast<int>(std::lround(ax)) + dx, y0 = static_cast<int>(std::lround(ay)) + dy;
-                for (std::uint32_t f = t.first; f < t.first + t.count; ++f) {
-                  const Feature& ft = lvl.features[f];
-                  const int x = x0 + ft.x, y = y0 + ft.y;
-                  if (x < 0 || y < 0 || x >= L.width || y >= L.height) continue;
-                  sc += L.response[ft.orientation][static_cast<std::size_t>(y) * L.width + x];
-                }
-                best = std::max(best, sc);
-              }
-              return best / (4.0 * t.count);
-            };
-            double cbest = 0; std::uint32_t cbv = 0;
-            for (std::uint32_t k2 = 0; k2 < tsx.coarse_views.size(); ++k2) {
-              const double d = geometry::rotation_angle_between(tsx.views[tsx.coarse_views[k2]].T_cam_obj, Tv) * 57.3 +
-                               100.0 * std::abs(std::log(tsx.views[tsx.coarse_views[k2]].T_cam_obj.translation().z() / Tv.translation().z()));
-              if (k2 == 0 || d < cbest) { cbest = d; cbv = k2; }
-            }
-            const double fs = score_at(tsx.fine, det.gradients().fine(), tsx.fine.templates[best_v], a.x() * 0.5 - 0.25, a.y() * 0.5 - 0.25);
-            const double cs = score_at(tsx.coarse, det.gradients().coarse(), tsx.coarse.templates[cbv], a.x() * 0.25 - 0.375, a.y() * 0.25 - 0.375);
-            fmt::print(stderr, "   oracle: nearest fine view dist {:.1f} score {:.2f}; nearest coarse dist {:.1f} score {:.2f}\n", best_d, fs, cbest, cs);
-            // Where the truth was lost: the first coarse candidate (ranked by its probe) and picked
-            // hypothesis near the true anchor (12 px), and near it with a view within 20 degrees.
-            for (const bool picked : {false, true}) {
-              int near_pos = -1, near_both = -1;
-              for (std::size_t i = 0; i < det.candidate_count(picked); ++i) {
-                const auto c = det.candidate(picked, i);
-                const double d = std::hypot(2.0 * c.x + 0.5 - a.x(), 2.0 * c.y + 0.5 - a.y());
-                if (d > 12.0) continue;
-                if (near_pos < 0) near_pos = static_cast<int>(i);
-                if (near_both < 0 && geometry::rotation_angle_between(tsx.views[c.view].T_cam_obj, Tv) < 20.0 / 57.3)
-                  near_both = static_cast<int>(i);
-              }
-              fmt::print(stderr, "   {} ({}): first near the truth #{}, near with its view #{}\n", picked ? "picked" : "coarse",
-                         det.candidate_count(picked), near_pos, near_both);
-            }
-          }
-          for (const double dz : {0.92, 1.08}) {
-            geometry::SE3 Tp = T;
-            Tp.set_translation(T.translation() * dz);
-            det.refine(Tp);
-            const PoseError ep = symmetric_pose_error(Tp, T, sym);
-            fmt::print(stderr, "   depth x{:.2f}: refined err {:.3f} m {:.1f} deg score {:.2f}\n", dz, ep.translation, ep.rotation * 57.3, det.verify(Tp).score);
-          }
-          for (const double ang : {0.1, -0.1}) {
-            geometry::SE3 Tp = T;
-            Tp = T * geometry::SE3::from_rvec(Eigen::Vector3d::Zero(), Eigen::Vector3d(ang, 0.5 * ang, 0));
-            det.refine(Tp);
-            const PoseError ep = symmetric_pose_error(Tp, T, sym);
-            fmt::print(stderr, "   rot {:.2f}: refined err {:.3f} m {:.1f} deg score {:.2f}\n", ang, ep.translation, ep.rotation * 57.3, det.verify(Tp).score);
-          }
-          double best_wrong = 0.0, best_right = 0.0;
-          (void)vr;
-          for (int h = 0; h < r.hypotheses; ++h) {
-            const PoseError e = symmetric_pose_error(hyp[h].T_cam_obj, T, sym);
-            if (e.translation > 0.05 || e.rotation > 0.0873) best_wrong = std::max(best_wrong, hyp[h].verification.score);
-            else best_right = std::max(best_right, hyp[h].verification.score);
-            const PoseError e0 = symmetric_pose_error(hyp[h].T_template, T, sym);
-            if (std::getenv("V4R_EVAL_DEBUG")[0] == '2') fmt::print(stderr, "   h{} tpl {:.2f} (err {:.3f} m {:.1f} deg) share {:.2f} score {:.2f} leak {:.2f} ({}) err {:.3f} m {:.1f} deg\n", h, hyp[h].template_score,
-                       e0.translation, e0.rotation * 57.3, hyp[h].verification.match_share, hyp[h].verification.score,
-                       hyp[h].verification.leak, hyp[h].verification.leak_samples, e.translation, e.rotation * 57.3);
-          }
-          if (std::getenv("V4R_EVAL_DEBUG")[0] == '3') {
-            cv::Mat dbg = img.clone();
-            EdgeProjector proj(*m, params.templates.crease_angle_deg * 3.14159265 / 180.0);
-            std::vector<EdgeSample> smp(400);
-            const std::size_t ns = proj.sample(T, cam, 5.0, smp);
-            const auto& g = det.gradients();
-            for (std::size_t q = 0; q < ns; ++q) {
-              const EdgeSample& e = smp[q];
-              const int x = static_cast<int>(std::lround(e.px.x())), y = static_cast<int>(std::lround(e.px.y()));
-              const double gx = g.gx(x, y), gy = g.gy(x, y);
-              const double mag = std::sqrt(gx * gx + gy * gy) / 8.0;
-              if (mag <= params.verify.min_gradient && q % 10 == 0) {
-                fmt::print(stderr, "  red sample ({:.1f},{:.1f}) n ({:.2f},{:.2f}) mag {:.1f}; along normal:", e.px.x(), e.px.y(), e.normal.x(), e.normal.y(), mag);
-                for (int t = -3; t <= 3; ++t) {
-                  const int xx = static_cast<int>(std::lround(e.px.x() + t * e.normal.x())), yy = static_cast<int>(std::lround(e.px.y() + t * e.normal.y()));
-                  const cv::Vec3b c = img.at<cv::Vec3b>(yy, xx);
-                  fmt::print(stderr, " [{} g=({},{}) I={}]", t, g.gx(xx, yy), g.gy(xx, yy), int(c[1]));
-                }
-                fmt::print(stderr, "\n");
-              }
-              cv::circle(dbg, cv::Point(x, y), 2, mag > params.verify.min_gradient ? cv::Scalar(0, 255, 0) : cv::Scalar(0, 0, 255), 1);
-            }
-            cv::imwrite(fmt::format("/tmp/det_dbg_{}_{}.png", scenes::scene_name(scenes[si]), k), dbg);
-          }
-          fmt::print(stderr, "   best right {:.2f} best wrong {:.2f} {}\n", best_right, best_wrong,
-                     best_right > best_wrong ? "" : (best_right == 0.0 ? "NOT FOUND" : "OUTRANKED"));
-        }
+        if (std::getenv("V4R_EVAL_DEBUG"))
+          diagnose(det, *set, *m, params, cam, T, sym, r, hyp, img, fmt::format("{} #{}", scenes::scene_name(scenes[si]), k));
         if (r.verified > 0) {
           const PoseError e = symmetric_pose_error(hyp[0].T_cam_obj, T, sym);
           if (e.translation <= 0.05 && e.rotation <= 5.0 * 3.14159265358979 / 180.0) ++ok;
