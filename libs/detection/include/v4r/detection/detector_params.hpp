@@ -26,8 +26,8 @@ struct TemplateParams {
   double view_step_deg = 7.0;      ///< degrees between neighbouring views in elevation and azimuth
   double inplane_step_deg = 7.0;   ///< degrees between in-plane rotations
   double scale_step = 1.12;        ///< ratio of neighbouring template distances (> 1)
-  int coarse_stride = 3;           ///< every coarse_stride-th view along each grid axis gets a coarse template
-  int coarse_features = 20;        ///< features per coarse template (1/4 resolution)
+  int coarse_stride = 2;           ///< every coarse_stride-th view along each grid axis gets a coarse template
+  int coarse_features = 32;        ///< features per coarse template (1/4 resolution)
   int fine_features = 48;          ///< features per fine template (1/2 resolution)
   double crease_angle_deg = 10.0;  ///< edges between faces closer than this in normal are no edge
 };
