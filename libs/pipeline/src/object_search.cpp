@@ -36,6 +36,8 @@ void add_search_params(ParamRegistry& r, ObjectSearchParams& p) {
   r.add("search.restart_shift", &p.restart_shift, 0.0, 10.0, "radius",
         "restart offsets across the view, in model bounding radii");
   r.add("search.hypotheses", &p.hypotheses, 1, 64, "", "best detector hypotheses refined by the tracker per search frame");
+  r.add("search.template_starts", &p.template_starts,
+        "each of those is also refined from its template's pose (before the detector's own alignment, which texture can pull away)");
   r.add("search.refine_cycles", &p.refine_cycles, 1, 20, "", "vision cycles run on a hypothesis (wide windows, then normal)");
   r.add("search.accept_evidence", &p.accept_evidence, 0.0, 1.0, "",
         "share of the projected model's edge samples the image must confirm for a found pose");
@@ -59,8 +61,8 @@ ObjectSearch::ObjectSearch(const CycleParams& cycle, const ObjectSearchParams& p
     : p_(p), dp_(dp), probe_(probe_params(cycle)) {
   hyp_.resize(static_cast<std::size_t>(std::clamp(p_.hypotheses, 1, 64)));
   // Every pose one search frame can accept: the candidate, two tag poses, the restarts around
-  // two centres (at most 9 each) and the detector's hypotheses.
-  accepted_.reserve(1 + 2 + 2 * 9 + hyp_.size());
+  // two centres (at most 9 each) and the detector's hypotheses (refined and their templates).
+  accepted_.reserve(1 + 2 + 2 * 9 + 2 * hyp_.size());
 }
 
 void ObjectSearch::add_object(const scene::Scene& scene, std::size_t object,
@@ -309,6 +311,8 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
     if (r.status == detection::DetectionResult::Status::kOk) {
       const int n = std::min<int>(r.hypotheses, std::min<int>(p_.hypotheses, static_cast<int>(hyp_.size())));
       for (int k = 0; k < n; ++k) consider(hyp_[static_cast<std::size_t>(k)].T_cam_obj, false);
+      if (p_.template_starts)
+        for (int k = 0; k < n; ++k) consider(hyp_[static_cast<std::size_t>(k)].T_template, false);
     }
   }
   // The highest rank, unless it is nested in another accepted pose (choose_found_pose).

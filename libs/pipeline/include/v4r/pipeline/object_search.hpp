@@ -33,6 +33,11 @@ struct ObjectSearchParams {
   /// long (0: the last pose only).
   double extrapolate_s = 1.0;
   int hypotheses = 10;           ///< best detector hypotheses refined by the tracker per search frame
+  /// Each of those hypotheses is also refined by the tracker from its template's pose (the
+  /// detector's pose before its own edge alignment). That alignment can be pulled onto an edge of
+  /// the object's texture (a printed stripe parallel to a real edge) and away from a template
+  /// that lay in the true pose's basin; the tracker, with its own cues, may still reach it.
+  bool template_starts = true;
   int refine_cycles = 3;         ///< vision cycles run on a hypothesis (first wide windows, then normal)
   /// A refined hypothesis is accepted when the cycle reports `tracking` on it and this share of
   /// the projected model's edge samples is confirmed by the image (features::EdgeEvidence).
@@ -164,7 +169,8 @@ void set_found_pose(scene::Scene& scene, std::size_t object, const geometry::SE3
 /// object's AprilTag; unless one of them was accepted: (3) on the first local_frames search
 /// frames, perturbed restarts around the last pose (accepted at local_accept_evidence); unless one
 /// of them was accepted: (4) the detector's best hypotheses over the whole image
-/// (detection::Detector). Every hypothesis is refined by the tracker itself (a private
+/// (detection::Detector), from their refined poses and from their templates' poses
+/// (template_starts). Every hypothesis is refined by the tracker itself (a private
 /// VisionCycle run refine_cycles times on it: features not found yet are searched in the wide
 /// window, then tracked in the normal one) and accepted by the cycle's own status test: the
 /// share of the whole projected model's edge samples that the image confirms
