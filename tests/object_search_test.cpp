@@ -61,6 +61,20 @@ void append_empty(std::vector<Frame>& seq, const model::Model& m, const synth::R
   }
 }
 
+/// The built-in box and its templates for `dp` (null pointers on failure).
+struct BoxWithTemplates {
+  std::shared_ptr<const model::Model> model;
+  std::shared_ptr<const detection::TemplateSet> templates;
+};
+BoxWithTemplates box_with_templates(const geometry::PinholeCamera& cam, const detection::DetectorParams& dp) {
+  auto parsed = model::parse_cao(synth::box_cao(), "box");
+  if (!parsed) return {};
+  auto model = std::make_shared<const model::Model>(std::move(*parsed));
+  auto ts = detection::build_templates(*model, cam, dp);
+  if (!ts) return {};
+  return {model, std::make_shared<const detection::TemplateSet>(std::move(*ts))};
+}
+
 }  // namespace
 
 TEST(ObjectSearch, FindsTheObjectWithoutAPoseAndAgainAfterTwentyFramesOutOfView) {
@@ -170,13 +184,11 @@ TEST(ObjectSearch, FindsTheObjectWithoutAPoseAndAgainAfterTwentyFramesOutOfView)
 TEST(ObjectSearch, NeverTracksOnObjectFreeImages) {
   // Clutter backgrounds and no object at all: searched on every frame, never `tracking`.
   const geometry::PinholeCamera cam = synth::default_camera();
-  auto parsed = model::parse_cao(synth::box_cao(), "box");
-  ASSERT_TRUE(parsed);
-  auto model = std::make_shared<const model::Model>(std::move(*parsed));
-  detection::DetectorParams dp;
-  auto ts = detection::build_templates(*model, cam, dp);
-  ASSERT_TRUE(ts);
-  auto templates = std::make_shared<const detection::TemplateSet>(std::move(*ts));
+  const detection::DetectorParams dp;  // default view range
+  const BoxWithTemplates box = box_with_templates(cam, dp);
+  ASSERT_TRUE(box.model && box.templates);
+  const auto& model = box.model;
+  const auto& templates = box.templates;
   pipeline::SingleObjectTracker tracker(model, cam);
   tracker.enable_search(templates, pipeline::ObjectSearchParams{}, dp);
   tracker.start_search();
@@ -198,4 +210,62 @@ TEST(ObjectSearch, NeverTracksOnObjectFreeImages) {
   std::printf("[search] object-free: %d frames searched, %d candidates, %d tracking\n", searched, candidates, tracking);
   EXPECT_EQ(searched, 60);
   EXPECT_EQ(tracking, 0);
+}
+
+TEST(ObjectSearch, AStripePrintedOnTheBoxDoesNotKeepTheSearchFromIt) {
+  // A dark stripe across the box's top face, parallel to an edge of it (the development
+  // benchmark's box has one): the detector's alignment can pull a near-true template onto it, a
+  // pose farther away whose edge lies on the stripe. The search also refines each hypothesis from
+  // its template's pose (search.template_starts) and reaches the box.
+  const geometry::PinholeCamera cam = synth::default_camera();
+  const detection::DetectorParams dp;  // default view range
+  const BoxWithTemplates box = box_with_templates(cam, dp);
+  ASSERT_TRUE(box.model && box.templates);
+  const auto& model = box.model;
+  const auto& templates = box.templates;
+  const auto sym = detection::model_symmetries(*model);
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e9), hi = -lo;
+  for (const auto& j : model->junctions()) {
+    lo = lo.cwiseMin(j.p);
+    hi = hi.cwiseMax(j.p);
+  }
+  int found[2] = {0, 0}, gross[2] = {0, 0};  // locks within 2 cm / 5 deg, locks more than 20 deg off
+  for (std::uint32_t seed = 1; seed <= 20; ++seed) {
+    synth::RenderOptions ro;
+    ro.seed = seed;
+    synth::Renderer r(cam, ro);
+    std::mt19937 rng(500u + seed);
+    const geometry::SE3 T = sc::random_pose(*model, dp.views, cam, rng, 0.25, 60.0);
+    r.set_scene_reference(*model, {T, T});
+    cv::Mat img = r.render(*model, T, 0);
+    // The stripe: across the top face, parallel to its x edges, 12 % of its width in.
+    const double y = hi.y() - 0.12 * (hi.y() - lo.y());
+    const Eigen::Vector3d a(lo.x(), y, hi.z()), b(hi.x(), y, hi.z());
+    const Eigen::Vector2d pa = cam.project(T * a), pb = cam.project(T * b);
+    cv::line(img, cv::Point2d(pa.x(), pa.y()), cv::Point2d(pb.x(), pb.y()), cv::Scalar(30, 30, 30), 4, cv::LINE_AA);
+    cv::Mat grey;
+    cv::cvtColor(img, grey, cv::COLOR_BGR2GRAY);
+    for (const bool starts : {false, true}) {
+      pipeline::ObjectSearchParams sp;
+      sp.template_starts = starts;
+      pipeline::SingleObjectTracker tracker(model, cam);
+      tracker.enable_search(templates, sp, dp);
+      tracker.start_search();
+      for (int i = 0; i < 4; ++i) {
+        const pipeline::FrameResult fr = tracker.track(io::as_view(grey), io::as_colour_view(img));
+        if (fr.report.status != scene::TrackStatus::kTracking) continue;
+        const auto e = detection::symmetric_pose_error(fr.T_cam_obj, T, sym);
+        if (e.translation <= 0.02 && e.rotation <= 5.0 * kDeg) ++found[starts ? 1 : 0];
+        if (e.rotation > 20.0 * kDeg) ++gross[starts ? 1 : 0];
+        break;
+      }
+    }
+  }
+  std::printf("[stripe] found %d of 20 without template starts (%d locks > 20 deg off), %d with (%d)\n", found[0], gross[0],
+              found[1], gross[1]);
+  // Measured: 17 of 20 without (one lock 88 degrees off), 18 with (none). The stripe also makes
+  // both settle 8..23 mm or 2..10 degrees off on 3 other poses: left for later.
+  EXPECT_GT(found[1], found[0]);
+  EXPECT_GE(found[1], 17) << "of 20";
+  EXPECT_EQ(gross[1], 0);
 }
