@@ -40,6 +40,9 @@ using namespace v4r::detection;
 
 namespace {
 
+/// The evaluation's success: a pose within 5 cm / 5 degrees of the truth.
+bool within_bounds(const PoseError& e) { return e.translation <= 0.05 && e.rotation <= 5.0 * 3.14159265358979323846 / 180.0; }
+
 double percentile(std::vector<double> v, double q) {
   if (v.empty()) return 0.0;
   std::sort(v.begin(), v.end());
@@ -229,7 +232,7 @@ int sponge_eval(int n, const DetectorParams& params, const geometry::PinholeCame
     tally.refine_ms.push_back(r.refine_ms);
     if (r.verified == 0) return;
     const PoseError e = symmetric_pose_error(hyp[0].T_cam_obj, T, sym);
-    if (e.translation <= 0.05 && e.rotation <= 5.0 * 3.14159265358979323846 / 180.0) ++tally.ok;
+    if (within_bounds(e)) ++tally.ok;
     else ++tally.wrong;
   };
   for (int k = 0; k < n; ++k) {
@@ -314,7 +317,7 @@ int sequence_eval(const std::vector<std::string>& dirs, int every, const Detecto
         diagnose(det, *set, *m, params, *cam, T, sym, r, hyp, img, fmt::format("{} #{}", dir, frame));
       if (r.verified > 0) {
         const PoseError e = symmetric_pose_error(hyp[0].T_cam_obj, T, sym);
-        if (e.translation <= 0.05 && e.rotation <= 5.0 * 3.14159265358979 / 180.0) ++ok;
+        if (within_bounds(e)) ++ok;
         else ++wrong;
       }
     }
@@ -431,7 +434,7 @@ int main(int argc, char** argv) {
           diagnose(det, *set, *m, params, cam, T, sym, r, hyp, img, fmt::format("{} #{}", scenes::scene_name(scenes[si]), k));
         if (r.verified > 0) {
           const PoseError e = symmetric_pose_error(hyp[0].T_cam_obj, T, sym);
-          if (e.translation <= 0.05 && e.rotation <= 5.0 * 3.14159265358979 / 180.0) ++ok;
+          if (within_bounds(e)) ++ok;
           else ++wrong;
         }
       }
