@@ -185,10 +185,8 @@ TEST(ObjectSearch, NeverTracksOnObjectFreeImages) {
   // Clutter backgrounds and no object at all: searched on every frame, never `tracking`.
   const geometry::PinholeCamera cam = synth::default_camera();
   const detection::DetectorParams dp;  // default view range
-  const BoxWithTemplates box = box_with_templates(cam, dp);
-  ASSERT_TRUE(box.model && box.templates);
-  const auto& model = box.model;
-  const auto& templates = box.templates;
+  const auto [model, templates] = box_with_templates(cam, dp);
+  ASSERT_TRUE(model && templates);
   pipeline::SingleObjectTracker tracker(model, cam);
   tracker.enable_search(templates, pipeline::ObjectSearchParams{}, dp);
   tracker.start_search();
@@ -219,10 +217,8 @@ TEST(ObjectSearch, AStripePrintedOnTheBoxDoesNotKeepTheSearchFromIt) {
   // its template's pose (search.template_starts) and reaches the box.
   const geometry::PinholeCamera cam = synth::default_camera();
   const detection::DetectorParams dp;  // default view range
-  const BoxWithTemplates box = box_with_templates(cam, dp);
-  ASSERT_TRUE(box.model && box.templates);
-  const auto& model = box.model;
-  const auto& templates = box.templates;
+  const auto [model, templates] = box_with_templates(cam, dp);
+  ASSERT_TRUE(model && templates);
   const auto sym = detection::model_symmetries(*model);
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e9), hi = -lo;
   for (const auto& j : model->junctions()) {
