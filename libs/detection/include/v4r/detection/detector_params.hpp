@@ -85,7 +85,7 @@ struct VerifyParams {
   /// A pose scoring at least this (below accept_score) is verified when its silhouette stands
   /// out in colour (EdgeAligner::measure_leak: leak <= max_leak): an occluded, noisy or blurred
   /// object. Colour images only; >= accept_score: off.
-  double leak_score = 0.6;
+  double leak_score = 0.5;
   double max_leak = 0.25;           ///< largest leak of such a pose
   int leak_min_samples = 30;        ///< fewer colour samples outside its silhouette: not verified this way
   /// An outside colour is compared with the inside colours of its own silhouette edge when that
