@@ -154,8 +154,8 @@ void diagnose(Detector& det, const TemplateSet& set, const model::Model& m, cons
   (void)vr;
   for (int h = 0; h < r.hypotheses; ++h) {
     const PoseError e = symmetric_pose_error(hyp[h].T_cam_obj, T, sym);
-    if (e.translation > 0.05 || e.rotation > 0.0873) best_wrong = std::max(best_wrong, hyp[h].verification.score);
-    else best_right = std::max(best_right, hyp[h].verification.score);
+    if (within_bounds(e)) best_right = std::max(best_right, hyp[h].verification.score);
+    else best_wrong = std::max(best_wrong, hyp[h].verification.score);
     const PoseError e0 = symmetric_pose_error(hyp[h].T_template, T, sym);
     if (std::getenv("V4R_EVAL_DEBUG")[0] == '2') fmt::print(stderr, "   h{} tpl {:.2f} (err {:.3f} m {:.1f} deg) share {:.2f} score {:.2f} leak {:.2f} ({}) err {:.3f} m {:.1f} deg{}\n", h, hyp[h].template_score,
                e0.translation, e0.rotation * 57.3, hyp[h].verification.match_share, hyp[h].verification.score,
