@@ -348,28 +348,66 @@ DetectionResult Detector::run(std::span<Hypothesis> out) {
 void Detector::verify_stand_out() {
   const VerifyParams& v = p_.verify;
   if (frame_colour_.empty() || v.stand_out_score >= v.accept_score || work_.empty()) return;
-  Hypothesis* best = nullptr;
+  Hypothesis* top = nullptr;
   for (Hypothesis& h : work_) {
     if (h.verified) return;
-    if (best == nullptr || h.verification.score > best->verification.score) best = &h;
+    if (top == nullptr || h.verification.score > top->verification.score) top = &h;
   }
-  Verification& bv = best->verification;
-  if (bv.samples < v.min_samples || bv.score < v.stand_out_score) return;
-  for (const Hypothesis& o : work_) {
-    if (&o == best || o.verification.score < bv.score - v.stand_out_margin) continue;
-    const PoseError e = symmetric_pose_error(o.T_cam_obj, best->T_cam_obj, symmetries_);
-    if (e.translation > v.distinct_m || e.rotation > v.distinct_deg * kDeg) return;
+  const bool by_leak = v.stand_out_leak_margin < 1.0;
+  // With the leak margin, every pose that could stand out or stand in the way has its leak.
+  if (by_leak)
+    for (Hypothesis& h : work_)
+      if (h.verification.leak_samples == 0 && h.verification.samples >= v.min_samples &&
+          h.verification.score >= v.stand_out_score - v.stand_out_margin)
+        aligner_.measure_leak(frame_colour_, h.T_cam_obj, h.verification);
+  const auto stands_out = [&](Hypothesis& c) {
+    Verification& cv = c.verification;
+    if (cv.samples < v.min_samples || cv.score < v.stand_out_score) return false;
+    if (cv.leak_samples == 0) aligner_.measure_leak(frame_colour_, c.T_cam_obj, cv);
+    if (cv.leak_samples < v.leak_min_samples || cv.leak < 0.0 || cv.leak > v.stand_out_max_leak) return false;
+    for (const Hypothesis& o : work_) {
+      if (&o == &c || o.verification.score < cv.score - v.stand_out_margin) continue;
+      const PoseError e = symmetric_pose_error(o.T_cam_obj, c.T_cam_obj, symmetries_);
+      if (e.translation <= v.distinct_m && e.rotation <= v.distinct_deg * kDeg) continue;  // the same pose
+      // A distinct pose as good by its edges whose outline leaks much more (by the margin, and as
+      // much as no pose that stands out may): an outline on clutter or on the object's own
+      // print, not a rival.
+      const Verification& ov = o.verification;
+      const double rival_leak = std::max(cv.leak + v.stand_out_leak_margin, v.stand_out_max_leak);
+      if (by_leak && ov.leak_samples >= v.leak_min_samples && ov.leak >= rival_leak) continue;
+      return false;
+    }
+    // Its near-symmetric twins (not among the hypotheses when the search found only one of them)
+    // must match worse where they differ from it, or else score stand_out_margin less.
+    for (const geometry::SE3& S : near_symmetries_) {
+      geometry::SE3 twin;
+      const int verdict = twin_verdict(c.T_cam_obj, S, twin);
+      if (verdict < 0 || (verdict == 0 && aligner_.verify(pyramid_, twin).score >= cv.score - v.stand_out_margin)) return false;
+    }
+    return true;
+  };
+  if (!by_leak) {
+    top->verified = stands_out(*top);
+    return;
   }
-  if (bv.leak_samples == 0) aligner_.measure_leak(frame_colour_, best->T_cam_obj, bv);
-  if (bv.leak_samples < v.leak_min_samples || bv.leak < 0.0 || bv.leak > v.stand_out_max_leak) return;
-  // Its near-symmetric twins (not among the hypotheses when the search found only one of them)
-  // must match worse where they differ from it, or else score stand_out_margin less.
-  for (const geometry::SE3& S : near_symmetries_) {
-    geometry::SE3 twin;
-    const int verdict = twin_verdict(best->T_cam_obj, S, twin);
-    if (verdict < 0 || (verdict == 0 && aligner_.verify(pyramid_, twin).score >= bv.score - v.stand_out_margin)) return;
+  // The best-scoring pose that stands out: candidates in order of score (then of index).
+  double last_score = 2.0;
+  std::size_t last_index = 0;
+  for (;;) {
+    std::size_t c = work_.size();
+    for (std::size_t i = 0; i < work_.size(); ++i) {
+      const double sc = work_[i].verification.score;
+      if (sc > last_score || (sc == last_score && i <= last_index)) continue;  // tried already
+      if (c == work_.size() || sc > work_[c].verification.score) c = i;
+    }
+    if (c == work_.size() || work_[c].verification.score < v.stand_out_score) return;
+    last_score = work_[c].verification.score;
+    last_index = c;
+    if (stands_out(work_[c])) {
+      work_[c].verified = true;
+      return;
+    }
   }
-  best->verified = true;
 }
 
 int Detector::twin_verdict(const geometry::SE3& T, const geometry::SE3& S, geometry::SE3& twin) {

@@ -89,6 +89,8 @@ void add_params(ParamRegistry& r, DetectorParams& p) {
         "with nothing verified otherwise, the best pose is verified when it scores at least this (>= accept_score: off),");
   r.add("detect.verify.stand_out_margin", &f.stand_out_margin, 0.0, 1.0, "", "... every distinct pose scores at least this less");
   r.add("detect.verify.stand_out_max_leak", &f.stand_out_max_leak, 0.0, 1.0, "", "... and its silhouette leaks at most this (colour images)");
+  r.add("detect.verify.stand_out_leak_margin", &f.stand_out_leak_margin, 0.0, 1.0, "",
+        "... a distinct pose within stand_out_margin is no rival when its silhouette leaks this much more, and at least stand_out_max_leak (1: off)");
   r.add("detect.verify.near_symmetry", &f.near_symmetry, 0.0, 0.5, "",
         "near symmetries within this share of the model's diagonal give a pose twins it must beat (twin_margin; 0: none)");
   r.add("detect.verify.twin_margin", &f.twin_margin, 0.0, 1.0, "",

@@ -387,7 +387,8 @@ TEST(Detector, FindsTheShipSectionWithAThirdOfItHidden) {
   const auto [ok_old, wrong_old] = run(f, scenes::Scene::kOcclusion, kImages, 5u);
   std::printf("section, 30 %% hidden: %d of %d found (%d wrong) with leak_score 0.5, %d (%d) with 0.6\n", ok, kImages, wrong, ok_old,
               wrong_old);
-  // Measured: 9 of 16 (none wrong) against 3 (none wrong).
+  // Measured: 9 of 16 (none wrong) against 3 (none wrong); 10 against 4 since
+  // detect.verify.stand_out_leak_margin.
   EXPECT_GE(ok, ok_old + 3);
   EXPECT_GE(ok, 6) << "of " << kImages;
   EXPECT_LE(wrong, wrong_old + 1);
@@ -411,6 +412,33 @@ TEST(Detector, APartlyHiddenObjectThatStandsOutIsVerified) {
   // Measured: 18 of 24 (flange and ship mock-up), 13 without; none wrong either way.
   EXPECT_GT(ok, ok_off);
   EXPECT_GE(ok, 16) << "of 24";
+  EXPECT_LE(wrong, wrong_off + 1);
+}
+
+TEST(Detector, ARivalWhoseOutlineLeaksDoesNotKeepAPoseFromStandingOut) {
+  // A third of the object hidden: the truth scores under accept_score, and a distinct pose fitted
+  // to the occluder's or the print's edges scores about as much (or more) while its outline leaks
+  // the object's colours. With detect.verify.stand_out_leak_margin such a pose is no rival. The
+  // gain is a few images in a hundred, so the test counts over five seeds in a row (1-5).
+  constexpr int kImages = 20;
+  int ok = 0, ok_off = 0, wrong = 0, wrong_off = 0;
+  for (auto cao : {synth::box_cao, synth::flange_cao}) {
+    Fixture f = make(cao);
+    for (unsigned seed = 1; seed <= 5; ++seed) {
+      f.params.verify.stand_out_leak_margin = 0.2;
+      const auto [o, w] = run(f, scenes::Scene::kOcclusion, kImages, seed);
+      f.params.verify.stand_out_leak_margin = 1.0;  // off
+      const auto [o_off, w_off] = run(f, scenes::Scene::kOcclusion, kImages, seed);
+      ok += o;
+      wrong += w;
+      ok_off += o_off;
+      wrong_off += w_off;
+    }
+  }
+  std::printf("box and flange, 30 %% hidden: %d of %d found (%d wrong) with the leak margin, %d (%d) without\n", ok,
+              10 * kImages, wrong, ok_off, wrong_off);
+  // Measured: 179 of 200 (9 wrong) against 175 (9 wrong).
+  EXPECT_GE(ok, ok_off + 2);
   EXPECT_LE(wrong, wrong_off + 1);
 }
 

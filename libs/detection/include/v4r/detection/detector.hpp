@@ -27,7 +27,8 @@ struct Hypothesis {
   Verification verification;    ///< edge test (and, below its bar, colour test) of the refined pose
   /// verification.score >= detect.verify.accept_score, or (colour images) >= leak_score with a
   /// leak <= max_leak; with enough samples either way; or, with no other verified, the best pose
-  /// standing out (detect.verify.stand_out_*)
+  /// standing out (detect.verify.stand_out_*; a distinct rival whose outline leaks
+  /// stand_out_leak_margin more does not count)
   bool verified = false;
   /// Verified, then withdrawn: another verified pose, distinct beyond the model's symmetries,
   /// scores within detect.verify.colour_ambiguity of it (a colour verdict) or edge_ambiguity (an
@@ -121,8 +122,9 @@ class Detector {
     std::int16_t x = 0, y = 0;
   };
   DetectionResult run(std::span<Hypothesis> out);
-  /// With no hypothesis verified, verifies the best-scoring one when it stands out
-  /// (detect.verify.stand_out_*).
+  /// With no hypothesis verified, verifies the best-scoring one that stands out
+  /// (detect.verify.stand_out_*): distinct poses whose outline leaks stand_out_leak_margin more
+  /// than its own are no rivals, so a pose below such a one may stand out.
   void verify_stand_out();
   /// Replaces the best-scoring hypothesis, and the best verified one, by its near-symmetric twin
   /// when the twin's distinctive edge samples match better (detect.verify.twin_margin).

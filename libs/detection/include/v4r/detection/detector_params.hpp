@@ -105,6 +105,11 @@ struct VerifyParams {
   double stand_out_score = 0.6;
   double stand_out_margin = 0.1;
   double stand_out_max_leak = 0.5;
+  /// ... where a distinct pose within stand_out_margin (or scoring more) is no rival when its
+  /// silhouette leaks at least this much more, and at least stand_out_max_leak (an outline on
+  /// clutter or on the object's print); then every pose scoring stand_out_score may stand out,
+  /// the best-scoring first (1: off).
+  double stand_out_leak_margin = 0.2;
   /// Near symmetries (detection::near_symmetries) within this share of the model's bounding-box
   /// diagonal: each gives a pose a twin, compared with it by twin_margin (0: none).
   double near_symmetry = 0.05;
