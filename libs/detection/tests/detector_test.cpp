@@ -421,11 +421,13 @@ TEST(Detector, ARivalWhoseOutlineLeaksDoesNotKeepAPoseFromStandingOut) {
   // the object's colours. With detect.verify.stand_out_leak_margin such a pose is no rival. The
   // gain is a few images in a hundred, so the test counts over five seeds in a row (1-5).
   constexpr int kImages = 20;
+  const double margin = VerifyParams{}.stand_out_leak_margin;  // the default
+  ASSERT_LT(margin, 1.0);
   int ok = 0, ok_off = 0, wrong = 0, wrong_off = 0;
   for (auto cao : {synth::box_cao, synth::flange_cao}) {
     Fixture f = make(cao);
     for (unsigned seed = 1; seed <= 5; ++seed) {
-      f.params.verify.stand_out_leak_margin = 0.2;
+      f.params.verify.stand_out_leak_margin = margin;
       const auto [o, w] = run(f, scenes::Scene::kOcclusion, kImages, seed);
       f.params.verify.stand_out_leak_margin = 1.0;  // off
       const auto [o_off, w_off] = run(f, scenes::Scene::kOcclusion, kImages, seed);
