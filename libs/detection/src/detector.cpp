@@ -354,25 +354,20 @@ void Detector::verify_stand_out() {
     if (top == nullptr || h.verification.score > top->verification.score) top = &h;
   }
   const bool by_leak = v.stand_out_leak_margin < 1.0;
-  // With the leak margin, every pose that could stand out or stand in the way has its leak.
-  if (by_leak)
-    for (Hypothesis& h : work_)
-      if (h.verification.leak_samples == 0 && h.verification.samples >= v.min_samples &&
-          h.verification.score >= v.stand_out_score - v.stand_out_margin)
-        aligner_.measure_leak(frame_colour_, h.T_cam_obj, h.verification);
   const auto stands_out = [&](Hypothesis& c) {
     Verification& cv = c.verification;
     if (cv.samples < v.min_samples || cv.score < v.stand_out_score) return false;
     if (cv.leak_samples == 0) aligner_.measure_leak(frame_colour_, c.T_cam_obj, cv);
     if (cv.leak_samples < v.leak_min_samples || cv.leak < 0.0 || cv.leak > v.stand_out_max_leak) return false;
-    for (const Hypothesis& o : work_) {
+    for (Hypothesis& o : work_) {
       if (&o == &c || o.verification.score < cv.score - v.stand_out_margin) continue;
       const PoseError e = symmetric_pose_error(o.T_cam_obj, c.T_cam_obj, symmetries_);
       if (e.translation <= v.distinct_m && e.rotation <= v.distinct_deg * kDeg) continue;  // the same pose
       // A distinct pose as good by its edges whose outline leaks much more (by the margin, and as
       // much as no pose that stands out may): an outline on clutter or on the object's own
-      // print, not a rival.
-      const Verification& ov = o.verification;
+      // print, not a rival. Its leak is measured when first needed.
+      Verification& ov = o.verification;
+      if (by_leak && ov.leak_samples == 0) aligner_.measure_leak(frame_colour_, o.T_cam_obj, ov);
       const double rival_leak = std::max(cv.leak + v.stand_out_leak_margin, v.stand_out_max_leak);
       if (by_leak && ov.leak_samples >= v.leak_min_samples && ov.leak >= rival_leak) continue;
       return false;
