@@ -41,6 +41,7 @@ namespace {
 constexpr double kDeg = 3.14159265358979323846 / 180.0;
 // detect.search.fine_window is at most 8 (its registered range): at most 18 x 18 anchors.
 constexpr int kMaxFineWindow = 8;
+constexpr double kPolishScoreDrop = 0.02;  // a polished pose may score this much less than before
 constexpr std::size_t kMaxFineAnchors = (2 * kMaxFineWindow + 2) * (2 * kMaxFineWindow + 2);
 GradientThreshold search_threshold(const SearchParams& s) { return {s.min_gradient, s.min_gradient_floor, s.noise_factor}; }
 }  // namespace
@@ -49,6 +50,7 @@ bool Detector::set_image(const image::ColourView& bgr) { return pyramid_.compute
 bool Detector::set_image(const image::ImageView& grey) { return pyramid_.compute(grey, search_threshold(p_.search)); }
 Verification Detector::verify(const geometry::SE3& T) { return aligner_.verify(pyramid_, T); }
 int Detector::refine(geometry::SE3& T) { return aligner_.refine(pyramid_, T); }
+int Detector::polish(geometry::SE3& T) { return aligner_.polish(pyramid_, T); }
 
 DetectionResult Detector::detect(const image::ColourView& bgr, std::span<Hypothesis> out) {
   const auto t0 = Clock::now();
@@ -329,6 +331,19 @@ DetectionResult Detector::run(std::span<Hypothesis> out) {
     if (a.verified != b.verified) return a.verified;
     return a.verification.score > b.verification.score;
   });
+  // The best verified pose, polished over all its edge samples; kept unless its edge test drops
+  // (a polish pulled onto a texture line).
+  if (!work_.empty() && work_[0].verified && p_.verify.polish_iterations > 0) {
+    geometry::SE3 T = work_[0].T_cam_obj;
+    if (aligner_.polish(pyramid_, T) > 0) {
+      Verification v = aligner_.verify(pyramid_, T);
+      if (v.samples >= p_.verify.min_samples && v.score >= work_[0].verification.score - kPolishScoreDrop) {
+        if (work_[0].verification.leak >= 0.0 && !frame_colour_.empty()) aligner_.measure_leak(frame_colour_, T, v);
+        work_[0].T_cam_obj = T;
+        work_[0].verification = v;
+      }
+    }
+  }
   // Hypotheses that converged to the same pose are given once (the best ranked).
   std::size_t n = 0;
   for (std::size_t i = 0; i < work_.size() && n < out.size(); ++i) {

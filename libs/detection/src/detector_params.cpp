@@ -54,6 +54,10 @@ void add_params(ParamRegistry& r, DetectorParams& p) {
   r.add("detect.verify.depth_scan_steps", &f.depth_scan_steps, 0, 20, "", "distances tried either side of a hypothesis before its refinement");
   r.add("detect.verify.depth_scan_step", &f.depth_scan_step, 0.001, 0.5, "", "relative distance step of that scan");
   r.add("detect.verify.refine_iterations", &f.refine_iterations, 0, 100, "", "iterations of the 6-DoF edge alignment of a hypothesis");
+  r.add("detect.verify.polish_iterations", &f.polish_iterations, 0, 100, "",
+        "iterations polishing the best verified pose over all its edge samples, edges placed to a fraction of a pixel (0: off)");
+  r.add("detect.verify.polish_range", &f.polish_range_px, 0.5, 32.0, "px",
+        "search range and Tukey width of that polish along the edge normal");
   r.add("detect.verify.refine_tukey", &f.refine_tukey_px, 0.0, 64.0, "px",
         "after the first third of the alignment, matches are weighted by Tukey's biweight of this width (0: Huber throughout)");
   r.add("detect.verify.match_distance", &f.match_distance_px, 0.5, 10.0, "px", "a sample matches a gradient this close along its normal");

@@ -105,46 +105,84 @@ int EdgeAligner::refine(const GradientPyramid& g, geometry::SE3& T) {
     const double range = std::max(2.0 * p_.match_distance_px, p_.refine_search_px * (f < 0.34 ? 1.0 : (1.0 - f) * 1.5));
     const std::size_t n = projector_.sample(T, cam_, p_.sample_spacing_px, refine_buffer());
     if (n < 12) break;
-    geometry::Matrix6d H = geometry::Matrix6d::Zero();
-    geometry::Vector6d b = geometry::Vector6d::Zero();
-    int used = 0;
-    const double huber = 1.5;
-    const bool tukey = p_.refine_tukey_px > 0.0;
-    for (std::size_t i = 0; i < n; ++i) {
-      const EdgeSample& s = samples_[i];
-      const double t = search(g, s.px, s.normal, range);
-      if (std::isnan(t)) continue;
-      const Eigen::Vector3d Xc = T * s.p_obj;
-      const double z = Xc.z();
-      if (z <= 1e-6) continue;
-      Eigen::Matrix<double, 2, 3> Jp;
-      Jp << cam_.fx / z, 0.0, -cam_.fx * Xc.x() / (z * z), 0.0, cam_.fy / z, -cam_.fy * Xc.y() / (z * z);
-      const Eigen::RowVector3d nJ = s.normal.transpose() * Jp;
-      geometry::Vector6d J;
-      J.head<3>() = nJ.transpose();
-      J.tail<3>() = (-(nJ * geometry::hat(Xc))).transpose();
-      const double r = -t;  // residual: projected point minus the matched edge, along n
-      // Huber while the range is wide; then Tukey's biweight: a sample matched farther than
-      // refine_tukey_px (an occluder's edge, a texture line) no longer pulls the pose.
-      double w = std::abs(r) <= huber ? 1.0 : huber / std::abs(r);
-      if (tukey && f >= 0.34) {
-        const double u = r / p_.refine_tukey_px;
-        w = std::abs(u) < 1.0 ? (1.0 - u * u) * (1.0 - u * u) : 0.0;
-      }
-      H.noalias() += w * J * J.transpose();
-      b.noalias() += w * r * J;
-      ++used;
-    }
-    if (used < 12) break;
-    H.diagonal() *= 1.0 + 1e-3;
-    H.diagonal().array() += 1e-9;
-    const geometry::Vector6d delta = H.ldlt().solve(-b);
-    if (!delta.allFinite()) break;
-    T = geometry::SE3::exp(delta) * T;
+    // Huber while the range is wide; then Tukey's biweight: a sample matched farther than
+    // refine_tukey_px (an occluder's edge, a texture line) no longer pulls the pose.
+    geometry::Vector6d delta;
+    if (!align_step(g, n, range, f >= 0.34 ? p_.refine_tukey_px : 0.0, false, T, delta)) break;
     ++moved;
     if (delta.head<3>().norm() < 1e-6 && delta.tail<3>().norm() < 1e-6 && range <= 2.0 * p_.match_distance_px) break;
   }
   return moved;
+}
+
+int EdgeAligner::polish(const GradientPyramid& g, geometry::SE3& T) {
+  set_threshold(g);
+  int moved = 0;
+  for (int it = 0; it < p_.polish_iterations; ++it) {
+    const std::size_t n = projector_.sample(T, cam_, p_.sample_spacing_px, samples_);
+    if (n < 12) break;
+    geometry::Vector6d delta;
+    if (!align_step(g, n, p_.polish_range_px, p_.polish_range_px, true, T, delta)) break;
+    ++moved;
+    if (delta.head<3>().norm() < 1e-7 && delta.tail<3>().norm() < 1e-7) break;
+  }
+  return moved;
+}
+
+double EdgeAligner::search_subpixel(const GradientPyramid& g, const Eigen::Vector2d& px, const Eigen::Vector2d& n,
+                                    double range) const {
+  const double t = search(g, px, n, range);
+  if (std::isnan(t)) return t;
+  const int w = g.width(), h = g.height();
+  // |gradient . n| at t - 1, t, t + 1 (pixels nearest the normal's points).
+  double v[3];
+  for (int k = -1; k <= 1; ++k) {
+    const int x = round_px(px.x() + (t + k) * n.x());
+    const int y = round_px(px.y() + (t + k) * n.y());
+    if (x < 1 || y < 1 || x >= w - 1 || y >= h - 1) return t;
+    v[k + 1] = std::abs(g.gx(x, y) * n.x() + g.gy(x, y) * n.y());
+  }
+  const double denom = v[0] - 2.0 * v[1] + v[2];
+  if (!(denom < -1e-9) || v[0] > v[1] || v[2] > v[1]) return t;
+  return t + std::clamp(0.5 * (v[0] - v[2]) / denom, -0.5, 0.5);
+}
+
+bool EdgeAligner::align_step(const GradientPyramid& g, std::size_t n, double range, double tukey_px, bool subpixel,
+                             geometry::SE3& T, geometry::Vector6d& delta) {
+  geometry::Matrix6d H = geometry::Matrix6d::Zero();
+  geometry::Vector6d b = geometry::Vector6d::Zero();
+  int used = 0;
+  const double huber = 1.5;
+  for (std::size_t i = 0; i < n; ++i) {
+    const EdgeSample& s = samples_[i];
+    const double t = subpixel ? search_subpixel(g, s.px, s.normal, range) : search(g, s.px, s.normal, range);
+    if (std::isnan(t)) continue;
+    const Eigen::Vector3d Xc = T * s.p_obj;
+    const double z = Xc.z();
+    if (z <= 1e-6) continue;
+    Eigen::Matrix<double, 2, 3> Jp;
+    Jp << cam_.fx / z, 0.0, -cam_.fx * Xc.x() / (z * z), 0.0, cam_.fy / z, -cam_.fy * Xc.y() / (z * z);
+    const Eigen::RowVector3d nJ = s.normal.transpose() * Jp;
+    geometry::Vector6d J;
+    J.head<3>() = nJ.transpose();
+    J.tail<3>() = (-(nJ * geometry::hat(Xc))).transpose();
+    const double r = -t;  // residual: projected point minus the matched edge, along n
+    double w = std::abs(r) <= huber ? 1.0 : huber / std::abs(r);
+    if (tukey_px > 0.0) {
+      const double u = r / tukey_px;
+      w = std::abs(u) < 1.0 ? (1.0 - u * u) * (1.0 - u * u) : 0.0;
+    }
+    H.noalias() += w * J * J.transpose();
+    b.noalias() += w * r * J;
+    ++used;
+  }
+  if (used < 12) return false;
+  H.diagonal() *= 1.0 + 1e-3;
+  H.diagonal().array() += 1e-9;
+  delta = H.ldlt().solve(-b);
+  if (!delta.allFinite()) return false;
+  T = geometry::SE3::exp(delta) * T;
+  return true;
 }
 
 Verification EdgeAligner::verify(const GradientPyramid& g, const geometry::SE3& T) {

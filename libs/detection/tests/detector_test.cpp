@@ -518,3 +518,40 @@ TEST(Detector, TheAlignmentFindsAPartlyHiddenBoxWhereItsEdgesAreSeen) {
   EXPECT_GT(held_tukey, held_huber);
   EXPECT_GE(held_tukey, 40);
 }
+
+TEST(Detector, ThePolishPlacesARefinedPoseCloserToTheTruth) {
+  // The refinement matches edges to the pixel over at most refine_samples samples; the polish
+  // (detect.verify.polish_*) uses every sample and places each edge to a fraction of a pixel.
+  // Starts 1 cm and 3 degrees off the truth, refined, then polished: the polished poses are nearer.
+  const Fixture f = make(synth::box_cao);
+  Detector det(f.model, f.templates, f.cam, f.params);
+  std::array<Hypothesis, 16> hyp;
+  std::mt19937 rng(41);
+  std::vector<double> refined_t, refined_r, polished_t, polished_r;
+  for (int k = 0; k < 12; ++k) {
+    const geometry::SE3 T = scenes::random_pose(*f.model, f.params.views, f.cam, rng);
+    const auto scene = k % 2 == 0 ? scenes::Scene::kPlain : scenes::Scene::kNoise;
+    const cv::Mat img = scenes::render_scene(*f.model, T, f.cam, scene, 70u + static_cast<unsigned>(k));
+    ASSERT_TRUE(det.set_image(io::as_colour_view(img)));
+    const geometry::SE3 start = geometry::SE3::from_rvec(Eigen::Vector3d(0.0, 0.0, 0.01), Eigen::Vector3d::Zero()) * T *
+                                geometry::SE3::from_rvec(Eigen::Vector3d::Zero(), Eigen::Vector3d(3, -2, 1) * kDeg);
+    geometry::SE3 Tr = start;
+    det.refine(Tr);
+    geometry::SE3 Tp = Tr;
+    EXPECT_GT(det.polish(Tp), 0);
+    const PoseError er = symmetric_pose_error(Tr, T, f.symmetries), ep = symmetric_pose_error(Tp, T, f.symmetries);
+    refined_t.push_back(er.translation);
+    refined_r.push_back(er.rotation);
+    polished_t.push_back(ep.translation);
+    polished_r.push_back(ep.rotation);
+  }
+  const auto median = [](std::vector<double> v) {
+    std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
+    return v[v.size() / 2];
+  };
+  const double rt = median(refined_t), rr = median(refined_r), pt = median(polished_t), pr = median(polished_r);
+  std::printf("median refined %.2f mm %.2f deg, polished %.2f mm %.2f deg\n", rt * 1e3, rr / kDeg, pt * 1e3, pr / kDeg);
+  // Measured: refined 0.31 mm / 0.20 deg, polished 0.23 mm / 0.08 deg.
+  EXPECT_LT(pt, rt);
+  EXPECT_LT(pr, 0.7 * rr);
+}

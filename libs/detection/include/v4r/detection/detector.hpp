@@ -96,6 +96,10 @@ class Detector {
   Verification verify(const geometry::SE3& T_cam_obj);
   /// 6-DoF edge alignment of a pose on the last image; returns the iterations that moved it.
   int refine(geometry::SE3& T_cam_obj);
+  /// The final alignment of a pose already on the object's edges (detect() applies it to the best
+  /// verified pose): all edge samples, edges placed to a fraction of a pixel
+  /// (detect.verify.polish_*); returns the iterations that moved it.
+  int polish(geometry::SE3& T_cam_obj);
 
   [[nodiscard]] const DetectorParams& params() const { return p_; }
   /// The gradients of the last image (for display and diagnosis).

@@ -67,6 +67,11 @@ struct VerifyParams {
   /// this width (px): a match farther off (an occluder's edge, a texture line) stops pulling the
   /// pose. 0: Huber (1.5 px) throughout.
   double refine_tukey_px = 4.5;
+  /// The best verified pose is polished: this many Gauss-Newton iterations over all its edge
+  /// samples (up to max_samples) with the edge placed to a fraction of a pixel, matches within
+  /// polish_range px weighted by Tukey's biweight of that width (0: off).
+  int polish_iterations = 10;
+  double polish_range_px = 1.5;
   double match_distance_px = 1.5;   ///< px: a sample matches a gradient this close along its normal
   double match_angle_deg = 15.0;    ///< degrees: ... whose orientation is this close to the edge normal
   /// Grey levels per pixel of a matching gradient (a step of 2x this): the highest threshold, as

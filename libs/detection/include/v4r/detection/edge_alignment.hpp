@@ -46,6 +46,11 @@ class EdgeAligner {
   /// samples find a gradient), then p.verify.refine_iterations Gauss-Newton iterations; returns
   /// the number of iterations that moved the pose (0: too few edges matched).
   int refine(const GradientPyramid& g, geometry::SE3& T_cam_obj);
+  /// Polishes a pose already close to the image's edges (a verified one): p.verify.polish_iterations
+  /// Gauss-Newton iterations over up to p.verify.max_samples edge samples, each matched to the
+  /// strongest aligned gradient within polish_range_px, placed by a parabola through its
+  /// neighbours, Tukey-weighted. Returns the iterations that moved the pose.
+  int polish(const GradientPyramid& g, geometry::SE3& T_cam_obj);
   /// The edge test of a pose.
   Verification verify(const GradientPyramid& g, const geometry::SE3& T_cam_obj);
   /// The colour test of a pose, into v.leak and v.leak_samples: colours sampled at a few pixels
@@ -69,6 +74,13 @@ class EdgeAligner {
   double loose_share(const GradientPyramid& g, const geometry::SE3& T, double range);
   /// Signed offset (px) along `n` of the best gradient within `range` px of `px`, or NaN.
   double search(const GradientPyramid& g, const Eigen::Vector2d& px, const Eigen::Vector2d& n, double range) const;
+  /// As search, the offset refined to a fraction of a pixel (parabola through the gradient along n).
+  double search_subpixel(const GradientPyramid& g, const Eigen::Vector2d& px, const Eigen::Vector2d& n,
+                         double range) const;
+  /// One Gauss-Newton step of the alignment over samples_[0, n): matches within `range` px, Huber
+  /// or Tukey (tukey_px > 0) weights; false when fewer than 12 samples matched.
+  bool align_step(const GradientPyramid& g, std::size_t n, double range, double tukey_px, bool subpixel,
+                  geometry::SE3& T, geometry::Vector6d& delta);
 
   geometry::PinholeCamera cam_;
   VerifyParams p_;
