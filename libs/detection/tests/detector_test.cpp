@@ -525,7 +525,6 @@ TEST(Detector, ThePolishPlacesARefinedPoseCloserToTheTruth) {
   // Starts 1 cm and 3 degrees off the truth, refined, then polished: the polished poses are nearer.
   const Fixture f = make(synth::box_cao);
   Detector det(f.model, f.templates, f.cam, f.params);
-  std::array<Hypothesis, 16> hyp;
   std::mt19937 rng(41);
   std::vector<double> refined_t, refined_r, polished_t, polished_r;
   for (int k = 0; k < 12; ++k) {
