@@ -42,6 +42,7 @@ constexpr double kDeg = 3.14159265358979323846 / 180.0;
 // detect.search.fine_window is at most 8 (its registered range): at most 18 x 18 anchors.
 constexpr int kMaxFineWindow = 8;
 constexpr double kPolishScoreDrop = 0.02;  // a polished pose may score this much less than before
+constexpr int kTieMinSamples = 10;          // distinctive edge samples each pose of a near tie needs
 constexpr std::size_t kMaxFineAnchors = (2 * kMaxFineWindow + 2) * (2 * kMaxFineWindow + 2);
 GradientThreshold search_threshold(const SearchParams& s) { return {s.min_gradient, s.min_gradient_floor, s.noise_factor}; }
 }  // namespace
@@ -331,6 +332,7 @@ DetectionResult Detector::run(std::span<Hypothesis> out) {
     if (a.verified != b.verified) return a.verified;
     return a.verification.score > b.verification.score;
   });
+  break_near_tie();
   // The best verified pose, polished over all its edge samples; kept unless its edge test drops
   // (a polish pulled onto a texture line).
   if (!work_.empty() && work_[0].verified && p_.verify.polish_iterations > 0) {
@@ -451,6 +453,24 @@ void Detector::resolve_twins() {
       h.verification = aligner_.verify(pyramid_, twin);
       if (leak_measured && !frame_colour_.empty()) aligner_.measure_leak(frame_colour_, twin, h.verification);
       break;
+    }
+  }
+}
+
+void Detector::break_near_tie() {
+  if (!(p_.verify.tie_score > 0.0) || work_.empty() || !work_[0].verified) return;
+  const Hypothesis& best = work_[0];
+  for (std::size_t i = 1; i < work_.size(); ++i) {
+    const Hypothesis& h = work_[i];
+    // (Sorted: verified first, by decreasing score.)
+    if (!h.verified || h.verification.score < best.verification.score - p_.verify.tie_score) return;
+    const PoseError e = symmetric_pose_error(h.T_cam_obj, best.T_cam_obj, symmetries_);
+    if (e.translation <= p_.verify.distinct_m && e.rotation <= p_.verify.distinct_deg * kDeg) continue;
+    const EdgeAligner::TwinShares t =
+        aligner_.compare_twins(pyramid_, best.T_cam_obj, h.T_cam_obj, 2.0 * p_.verify.match_distance_px);
+    if (t.na >= kTieMinSamples && t.nb >= kTieMinSamples && t.b > t.a + p_.verify.tie_margin) {
+      std::swap(work_[0], work_[i]);
+      return;
     }
   }
 }

@@ -554,3 +554,30 @@ TEST(Detector, ThePolishPlacesARefinedPoseCloserToTheTruth) {
   EXPECT_LT(pt, rt);
   EXPECT_LT(pr, 0.7 * rr);
 }
+
+TEST(Detector, ANearTieIsDecidedWhereTheTwoPosesDiffer) {
+  // Two distinct verified poses scoring within detect.verify.tie_score of each other: the one
+  // whose distinctive edge samples match better is ranked first (detect.verify.tie_margin).
+  // Counted over box and section renders under blur, noise and occlusion, with and without it: no
+  // worse (measured: 60 found, 4 wrong either way here; bench/detection_eval over 1200 renders:
+  // 1105 -> 1111 found, 39 -> 33 wrong).
+  int ok[2] = {0, 0}, wrong[2] = {0, 0};
+  for (std::string (*cao)() : {synth::box_cao, synth::ship_section_cao}) {
+    Fixture f = make(cao);
+    for (int on = 0; on < 2; ++on) {
+      if (on == 0) f.params.verify.tie_score = 0.0;
+      else f.params.verify.tie_score = DetectorParams{}.verify.tie_score;
+      ASSERT_GT(DetectorParams{}.verify.tie_score, 0.0);
+      unsigned seed = 300;
+      for (const auto s : {scenes::Scene::kBlur, scenes::Scene::kNoise, scenes::Scene::kOcclusion}) {
+        const auto [o, w] = run(f, s, 12, seed);
+        seed += 100;
+        ok[on] += o;
+        wrong[on] += w;
+      }
+    }
+  }
+  std::printf("without: %d found, %d wrong; with: %d found, %d wrong\n", ok[0], wrong[0], ok[1], wrong[1]);
+  EXPECT_GE(ok[1], ok[0]);
+  EXPECT_LE(wrong[1], wrong[0]);
+}

@@ -133,6 +133,10 @@ class Detector {
   /// Replaces the best-scoring hypothesis, and the best verified one, by its near-symmetric twin
   /// when the twin's distinctive edge samples match better (detect.verify.twin_margin).
   void resolve_twins();
+  /// After the ranking: ranks first a distinct verified pose that scores within
+  /// detect.verify.tie_score of the best one and whose distinctive edge samples match by
+  /// tie_margin more (a near tie decided where the two poses differ).
+  void break_near_tie();
   /// +1: T's distinctive edge samples match by twin_margin more than those of its twin under S
   /// (refined into `twin`); -1: the twin's do; 0: neither, or too few distinctive samples.
   int twin_verdict(const geometry::SE3& T, const geometry::SE3& S, geometry::SE3& twin);

@@ -125,6 +125,11 @@ struct VerifyParams {
   /// exceeds the twin's by this, or, with too few such samples or neither ahead, when the twin
   /// scores stand_out_margin less (0: the twins are not compared, only scored).
   double twin_margin = 0.15;
+  /// Near ties: when distinct verified poses (beyond distinct_m / distinct_deg, modulo the
+  /// symmetries) score within tie_score of the best one, the first of them whose distinctive edge
+  /// samples (as for twins) match by tie_margin more than the best one's is ranked first (0: off).
+  double tie_score = 0.05;
+  double tie_margin = 0.05;
 };
 
 /// \brief The colour stage (the paper's sponge): used when the model's faces carry a colour
