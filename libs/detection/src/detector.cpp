@@ -318,8 +318,7 @@ DetectionResult Detector::run(std::span<Hypothesis> out) {
       if (margin <= 0.0) continue;
       for (const Hypothesis& o : work_) {
         if (&o == &h || !o.verified || o.verification.score < h.verification.score - margin) continue;
-        const PoseError e = symmetric_pose_error(o.T_cam_obj, h.T_cam_obj, symmetries_);
-        if (e.translation > p_.verify.distinct_m || e.rotation > p_.verify.distinct_deg * kDeg) {
+        if (distinct(o.T_cam_obj, h.T_cam_obj)) {
           h.ambiguous = true;
           break;
         }
@@ -378,8 +377,7 @@ void Detector::verify_stand_out() {
     if (cv.leak_samples < v.leak_min_samples || cv.leak < 0.0 || cv.leak > v.stand_out_max_leak) return false;
     for (Hypothesis& o : work_) {
       if (&o == &c || o.verification.score < cv.score - v.stand_out_margin) continue;
-      const PoseError e = symmetric_pose_error(o.T_cam_obj, c.T_cam_obj, symmetries_);
-      if (e.translation <= v.distinct_m && e.rotation <= v.distinct_deg * kDeg) continue;  // the same pose
+      if (!distinct(o.T_cam_obj, c.T_cam_obj)) continue;  // the same pose
       // A distinct pose as good by its edges whose outline leaks much more (by the margin, and as
       // much as no pose that stands out may): an outline on clutter or on the object's own
       // print, not a rival. Its leak is measured when first needed.
@@ -457,6 +455,11 @@ void Detector::resolve_twins() {
   }
 }
 
+bool Detector::distinct(const geometry::SE3& a, const geometry::SE3& b) const {
+  const PoseError e = symmetric_pose_error(a, b, symmetries_);
+  return e.translation > p_.verify.distinct_m || e.rotation > p_.verify.distinct_deg * kDeg;
+}
+
 void Detector::break_near_tie() {
   if (!(p_.verify.tie_score > 0.0) || work_.empty() || !work_[0].verified) return;
   const Hypothesis& best = work_[0];
@@ -464,8 +467,7 @@ void Detector::break_near_tie() {
     const Hypothesis& h = work_[i];
     // (Sorted: verified first, by decreasing score.)
     if (!h.verified || h.verification.score < best.verification.score - p_.verify.tie_score) return;
-    const PoseError e = symmetric_pose_error(h.T_cam_obj, best.T_cam_obj, symmetries_);
-    if (e.translation <= p_.verify.distinct_m && e.rotation <= p_.verify.distinct_deg * kDeg) continue;
+    if (!distinct(h.T_cam_obj, best.T_cam_obj)) continue;
     const EdgeAligner::TwinShares t =
         aligner_.compare_twins(pyramid_, best.T_cam_obj, h.T_cam_obj, 2.0 * p_.verify.match_distance_px);
     if (t.na >= kTieMinSamples && t.nb >= kTieMinSamples && t.b > t.a + p_.verify.tie_margin) {

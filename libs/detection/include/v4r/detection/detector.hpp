@@ -137,6 +137,8 @@ class Detector {
   /// detect.verify.tie_score of the best one and whose distinctive edge samples match by
   /// tie_margin more (a near tie decided where the two poses differ).
   void break_near_tie();
+  /// Poses farther apart than detect.verify.distinct_m or distinct_deg, modulo the symmetries.
+  [[nodiscard]] bool distinct(const geometry::SE3& a, const geometry::SE3& b) const;
   /// +1: T's distinctive edge samples match by twin_margin more than those of its twin under S
   /// (refined into `twin`); -1: the twin's do; 0: neither, or too few distinctive samples.
   int twin_verdict(const geometry::SE3& T, const geometry::SE3& S, geometry::SE3& twin);
