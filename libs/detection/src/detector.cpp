@@ -332,19 +332,7 @@ DetectionResult Detector::run(std::span<Hypothesis> out) {
     return a.verification.score > b.verification.score;
   });
   break_near_tie();
-  // The best verified pose, polished over all its edge samples; kept unless its edge test drops
-  // (a polish pulled onto a texture line).
-  if (!work_.empty() && work_[0].verified && p_.verify.polish_iterations > 0) {
-    geometry::SE3 T = work_[0].T_cam_obj;
-    if (aligner_.polish(pyramid_, T) > 0) {
-      Verification v = aligner_.verify(pyramid_, T);
-      if (v.samples >= p_.verify.min_samples && v.score >= work_[0].verification.score - kPolishScoreDrop) {
-        if (work_[0].verification.leak >= 0.0 && !frame_colour_.empty()) aligner_.measure_leak(frame_colour_, T, v);
-        work_[0].T_cam_obj = T;
-        work_[0].verification = v;
-      }
-    }
-  }
+  polish_best();
   // Hypotheses that converged to the same pose are given once (the best ranked).
   std::size_t n = 0;
   for (std::size_t i = 0; i < work_.size() && n < out.size(); ++i) {
@@ -446,13 +434,27 @@ void Detector::resolve_twins() {
     for (const geometry::SE3& S : near_symmetries_) {
       geometry::SE3 twin;
       if (twin_verdict(h.T_cam_obj, S, twin) >= 0) continue;
-      const bool leak_measured = h.verification.leak_samples > 0;
-      h.T_cam_obj = twin;
-      h.verification = aligner_.verify(pyramid_, twin);
-      if (leak_measured && !frame_colour_.empty()) aligner_.measure_leak(frame_colour_, twin, h.verification);
+      move_hypothesis(h, twin, aligner_.verify(pyramid_, twin));
       break;
     }
   }
+}
+
+void Detector::move_hypothesis(Hypothesis& h, const geometry::SE3& T, const Verification& v) {
+  const bool leak_measured = h.verification.leak_samples > 0;
+  h.T_cam_obj = T;
+  h.verification = v;
+  if (leak_measured && !frame_colour_.empty()) aligner_.measure_leak(frame_colour_, T, h.verification);
+}
+
+void Detector::polish_best() {
+  if (work_.empty() || !work_[0].verified || p_.verify.polish_iterations <= 0) return;
+  geometry::SE3 T = work_[0].T_cam_obj;
+  if (aligner_.polish(pyramid_, T) == 0) return;
+  // Kept unless its edge test drops (a polish pulled onto a texture line).
+  const Verification v = aligner_.verify(pyramid_, T);
+  if (v.samples >= p_.verify.min_samples && v.score >= work_[0].verification.score - kPolishScoreDrop)
+    move_hypothesis(work_[0], T, v);
 }
 
 bool Detector::distinct(const geometry::SE3& a, const geometry::SE3& b) const {

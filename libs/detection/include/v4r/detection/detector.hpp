@@ -137,6 +137,11 @@ class Detector {
   /// detect.verify.tie_score of the best one and whose distinctive edge samples match by
   /// tie_margin more (a near tie decided where the two poses differ).
   void break_near_tie();
+  /// Polishes the best verified hypothesis (EdgeAligner::polish, detect.verify.polish_*), kept
+  /// unless its edge score drops by more than a little.
+  void polish_best();
+  /// Moves `h` to pose T whose edge test is `v`; a leak measured at the old pose is measured again.
+  void move_hypothesis(Hypothesis& h, const geometry::SE3& T, const Verification& v);
   /// Poses farther apart than detect.verify.distinct_m or distinct_deg, modulo the symmetries.
   [[nodiscard]] bool distinct(const geometry::SE3& a, const geometry::SE3& b) const;
   /// +1: T's distinctive edge samples match by twin_margin more than those of its twin under S
