@@ -332,6 +332,7 @@ DetectionResult Detector::run(std::span<Hypothesis> out) {
     return a.verification.score > b.verification.score;
   });
   break_near_tie();
+  give_way_to_enclosing();
   polish_best();
   // Hypotheses that converged to the same pose are given once (the best ranked).
   std::size_t n = 0;
@@ -429,14 +430,17 @@ void Detector::resolve_twins() {
     if (h.verification.score > top->verification.score) top = &h;
     if (h.verified && (top_verified == nullptr || h.verification.score > top_verified->verification.score)) top_verified = &h;
   }
-  for (Hypothesis& h : work_) {
-    if (&h != top && &h != top_verified) continue;
-    for (const geometry::SE3& S : near_symmetries_) {
-      geometry::SE3 twin;
-      if (twin_verdict(h.T_cam_obj, S, twin) >= 0) continue;
-      move_hypothesis(h, twin, aligner_.verify(pyramid_, twin));
-      break;
-    }
+  for (Hypothesis& h : work_)
+    if (&h == top || &h == top_verified) prefer_twin(h);
+}
+
+void Detector::prefer_twin(Hypothesis& h) {
+  if (!(p_.verify.twin_margin > 0.0)) return;
+  for (const geometry::SE3& S : near_symmetries_) {
+    geometry::SE3 twin;
+    if (twin_verdict(h.T_cam_obj, S, twin) >= 0) continue;
+    move_hypothesis(h, twin, aligner_.verify(pyramid_, twin));
+    return;
   }
 }
 
@@ -455,6 +459,38 @@ void Detector::polish_best() {
   const Verification v = aligner_.verify(pyramid_, T);
   if (v.samples >= p_.verify.min_samples && v.score >= work_[0].verification.score - kPolishScoreDrop)
     move_hypothesis(work_[0], T, v);
+}
+
+void Detector::give_way_to_enclosing() {
+  // A share of the other's box: a pose whose samples cover as much is not nested in it.
+  constexpr double kEnclosedArea = 0.8;
+  const VerifyParams& v = p_.verify;
+  if (!(v.enclosing_factor > 0.0) || frame_colour_.empty() || work_.empty() || !work_[0].verified) return;
+  Hypothesis& a = work_[0];
+  const PixelBox& ab = a.verification.box;
+  const double area_a = double(ab.x1 - ab.x0) * (ab.y1 - ab.y0);
+  for (std::size_t i = 1; i < work_.size(); ++i) {
+    Verification& bv = work_[i].verification;
+    if (bv.samples < v.min_samples || bv.score < v.stand_out_score) continue;
+    if (bv.in_runs < v.enclosing_factor * a.verification.in_runs) continue;
+    // a's samples within b's box (a margin of 2.5 % of its size, at least 4 px), covering at
+    // most kEnclosedArea of it.
+    const PixelBox& bb = bv.box;
+    const int m = std::max(4, (bb.x1 - bb.x0 + bb.y1 - bb.y0) / 40);
+    if (ab.x0 < bb.x0 - m || ab.y0 < bb.y0 - m || ab.x1 > bb.x1 + m || ab.y1 > bb.y1 + m) continue;
+    if (area_a > kEnclosedArea * double(bb.x1 - bb.x0) * (bb.y1 - bb.y0)) continue;
+    if (!distinct(a.T_cam_obj, work_[i].T_cam_obj)) continue;
+    // b stands out in colour, and leaks no more than a.
+    if (bv.leak_samples == 0) aligner_.measure_leak(frame_colour_, work_[i].T_cam_obj, bv);
+    if (bv.leak_samples < v.leak_min_samples || bv.leak < 0.0 || bv.leak > v.stand_out_max_leak) continue;
+    if (a.verification.leak_samples == 0) aligner_.measure_leak(frame_colour_, a.T_cam_obj, a.verification);
+    if (a.verification.leak_samples >= v.leak_min_samples && a.verification.leak < bv.leak) continue;
+    a.verified = false;
+    work_[i].verified = true;
+    std::swap(work_[0], work_[i]);
+    prefer_twin(work_[0]);
+    return;
+  }
 }
 
 bool Detector::distinct(const geometry::SE3& a, const geometry::SE3& b) const {

@@ -103,6 +103,8 @@ void add_params(ParamRegistry& r, DetectorParams& p) {
         "distinct verified poses scoring within this of the best are compared with it where their edge samples differ (0: off)");
   r.add("detect.verify.tie_margin", &f.tie_margin, 0.0, 1.0, "",
         "... and ranked first when their distinctive edge samples match by this share more");
+  r.add("detect.verify.enclosing_factor", &f.enclosing_factor, 0.0, 10.0, "",
+        "a verified pose nested in the box of a distinct one that stands out and matches this many times as many edge samples gives way to it (0: off)");
   auto& c = p.colour;
   r.add("detect.colour.enabled", &c.enabled,
         "models with a face colour: search only around regions of that colour at 1/4 resolution (colour images)");

@@ -21,6 +21,20 @@ inline int round_px(double v) {
   const int i = static_cast<int>(h);
   return h < i ? i - 1 : i;
 }
+
+/// The image box of edge samples (px, rounded outwards).
+PixelBox sample_box(std::span<const EdgeSample> s) {
+  if (s.empty()) return {};
+  double x0 = s[0].px.x(), x1 = x0, y0 = s[0].px.y(), y1 = y0;
+  for (const EdgeSample& e : s) {
+    x0 = std::min(x0, e.px.x());
+    x1 = std::max(x1, e.px.x());
+    y0 = std::min(y0, e.px.y());
+    y1 = std::max(y1, e.px.y());
+  }
+  return {static_cast<int>(std::floor(x0)), static_cast<int>(std::floor(y0)), static_cast<int>(std::ceil(x1)),
+          static_cast<int>(std::ceil(y1))};
+}
 }
 
 EdgeAligner::EdgeAligner(const model::Model& model, const geometry::PinholeCamera& cam, const DetectorParams& p)
@@ -191,6 +205,7 @@ Verification EdgeAligner::verify(const GradientPyramid& g, const geometry::SE3& 
   const std::size_t n = projector_.sample(T, cam_, p_.sample_spacing_px, samples_);
   v.samples = static_cast<int>(n);
   if (v.samples < p_.min_samples) return v;
+  v.box = sample_box(std::span<const EdgeSample>(samples_.data(), n));
   const int w = g.width(), h = g.height();
   const int steps = static_cast<int>(std::ceil(p_.match_distance_px * 2.0));
   // A run: consecutive matches along one edge piece with one polarity (the same side brighter).

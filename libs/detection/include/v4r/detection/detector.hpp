@@ -133,10 +133,18 @@ class Detector {
   /// Replaces the best-scoring hypothesis, and the best verified one, by its near-symmetric twin
   /// when the twin's distinctive edge samples match better (detect.verify.twin_margin).
   void resolve_twins();
+  /// h moves to its near-symmetric twin when the twin matches better where they differ (twin_margin).
+  void prefer_twin(Hypothesis& h);
   /// After the ranking: ranks first a distinct verified pose that scores within
   /// detect.verify.tie_score of the best one and whose distinctive edge samples match by
   /// tie_margin more (a near tie decided where the two poses differ).
   void break_near_tie();
+  /// After the ranking: the best verified pose gives way to a distinct pose around it (its samples
+  /// within the other's box, covering at most 0.8 of it) that stands out in colour (leaks at most
+  /// stand_out_max_leak, and no more than it), scores stand_out_score and matches
+  /// detect.verify.enclosing_factor times as many edge samples in runs: a far pose nested in the
+  /// object's image, on one of its faces' outline.
+  void give_way_to_enclosing();
   /// Polishes the best verified hypothesis (EdgeAligner::polish, detect.verify.polish_*), kept
   /// unless its edge score drops by more than a little.
   void polish_best();

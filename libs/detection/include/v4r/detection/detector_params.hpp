@@ -130,6 +130,12 @@ struct VerifyParams {
   /// samples (as for twins) match by tie_margin more than the best one's is ranked first (0: off).
   double tie_score = 0.05;
   double tie_margin = 0.05;
+  /// A verified pose nested in another: when the best verified pose's edge samples lie within the
+  /// box of a distinct pose (covering at most 0.8 of it) that scores at least stand_out_score,
+  /// whose silhouette leaks at most stand_out_max_leak and no more than its own, and which
+  /// matches at least enclosing_factor times as many edge samples in runs, the enclosing pose is
+  /// verified and ranked first, the nested one no longer verified (0: off).
+  double enclosing_factor = 1.0;
 };
 
 /// \brief The colour stage (the paper's sponge): used when the model's faces carry a colour

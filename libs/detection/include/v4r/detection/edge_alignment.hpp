@@ -25,6 +25,7 @@ struct Verification {
   int matched = 0;     ///< ... of which matched a gradient in position and orientation
   int in_runs = 0;     ///< matched samples in runs of at least VerifyParams::min_run consecutive matches along an edge
   double match_share = 0.0;  ///< matched / samples (score counts in_runs / samples)
+  PixelBox box;              ///< image box of the visible edge samples (px)
   /// The colour test (EdgeAligner::measure_leak; -1 when not measured): the share of colour
   /// samples just outside the silhouette that look like the colours just inside it.
   double leak = -1.0;
