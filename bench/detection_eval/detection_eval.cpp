@@ -184,6 +184,10 @@ void diagnose(Detector& det, const TemplateSet& set, const model::Model& m, cons
       }
       cv::circle(dbg, cv::Point(x, y), 2, mag > params.verify.min_gradient ? cv::Scalar(0, 255, 0) : cv::Scalar(0, 0, 255), 1);
     }
+    if (r.hypotheses > 0) {
+      const std::size_t nh = proj.sample(hyp[0].T_cam_obj, cam, 5.0, smp);
+      for (std::size_t q = 0; q < nh; ++q) cv::circle(dbg, cv::Point(int(smp[q].px.x()), int(smp[q].px.y())), 1, cv::Scalar(255, 0, 0), -1);
+    }
     cv::imwrite(fmt::format("/tmp/det_dbg_{}.png", file_label), dbg);
   }
   fmt::print(stderr, "   best right {:.2f} best wrong {:.2f} {}\n", best_right, best_wrong,
