@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "v4r/detection/symmetry.hpp"
+#include "v4r/detection/view_range.hpp"
 #include "v4r/geometry/se3_jacobians.hpp"
 
 namespace v4r::pipeline {
@@ -107,25 +108,7 @@ void ObjectSearch::set_tag_start(std::size_t object, std::unique_ptr<detection::
 }
 
 bool ObjectSearch::in_view_range(const Slot& s, const geometry::SE3& T) const {
-  const double m = p_.view_margin_deg;
-  const detection::ViewRange& v = s.range;
-  const double dist_ratio = 1.0 + m / 45.0;
-  for (const geometry::SE3& S : s.symmetries) {
-    const geometry::SE3 TS = T * S;
-    const Eigen::Vector3d eye = TS.inverse().translation() - s.centre;
-    const double d = eye.norm();
-    if (d < v.distance_min_m / dist_ratio || d > v.distance_max_m * dist_ratio) continue;
-    const double el = std::asin(std::clamp(eye.z() / std::max(d, 1e-12), -1.0, 1.0)) / kDeg;
-    if (el < v.elevation_min_deg - m || el > v.elevation_max_deg + m) continue;
-    // In-plane turn: where the object's z axis points in the image (up at 0, see geometry::look_at).
-    const Eigen::Vector3d z = TS.rotation().col(2);
-    if (std::hypot(z.x(), z.y()) > 0.2) {  // (seen from straight above, the turn is the azimuth's)
-      const double ip = std::atan2(z.x(), -z.y()) / kDeg;
-      if (ip < v.inplane_min_deg - m || ip > v.inplane_max_deg + m) continue;
-    }
-    return true;
-  }
-  return false;
+  return detection::in_view_range(s.range, s.centre, s.symmetries, T, p_.view_margin_deg, p_.view_margin_deg);
 }
 
 bool over_place(const geometry::SE3& T_cam_obj, const geometry::SE3& T_other, const Eigen::Vector3d& centre,
