@@ -26,6 +26,7 @@
 
 #include "../../libs/detection/tests/detection_scenes.hpp"
 #include "v4r/detection/detector.hpp"
+#include "v4r/detection/view_range.hpp"
 #include "v4r/detection/gradient_pyramid.hpp"
 #include "v4r/detection/edge_projection.hpp"
 #include "v4r/detection/symmetry.hpp"
@@ -152,6 +153,15 @@ void diagnose(Detector& det, const TemplateSet& set, const model::Model& m, cons
   }
   double best_wrong = 0.0, best_right = 0.0;
   (void)vr;
+  {
+    const Eigen::Vector3d eye = T.inverse().translation() - set.centre;
+    const Eigen::Vector3d cc = T * set.centre;
+    const Eigen::Vector3d z = (geometry::SE3(Eigen::Quaterniond::FromTwoVectors(cc.normalized(), Eigen::Vector3d::UnitZ()), Eigen::Vector3d::Zero()) * T).rotation().col(2);
+    const ViewRange rv = resolve_view_range(params.views, model_extent(m).radius, cam.focal());
+    fmt::print(stderr, "   truth's view: elevation {:.1f} deg, in-plane {:.1f} deg, distance {:.3f} m (range {:.3f}..{:.3f}); within the margins {}\n",
+               std::asin(eye.z() / eye.norm()) * 57.3, std::atan2(z.x(), -z.y()) * 57.3, eye.norm(), rv.distance_min_m,
+               rv.distance_max_m, in_view_range(rv, set.centre, sym, T, params.verify.view_margin_deg, params.verify.inplane_margin_deg));
+  }
   for (int h = 0; h < r.hypotheses; ++h) {
     const PoseError e = symmetric_pose_error(hyp[h].T_cam_obj, T, sym);
     if (within_bounds(e)) best_right = std::max(best_right, hyp[h].verification.score);

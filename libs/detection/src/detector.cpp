@@ -7,6 +7,7 @@
 
 #include "v4r/core/clock.hpp"
 #include "v4r/detection/symmetry.hpp"
+#include "v4r/detection/view_range.hpp"
 #include "v4r/model/model_colour.hpp"
 
 namespace v4r::detection {
@@ -20,7 +21,9 @@ Detector::Detector(std::shared_ptr<const model::Model> model, std::shared_ptr<co
       pyramid_(cam.width, cam.height, p.search.fine_spread, p.search.coarse_spread),
       aligner_(*model_, cam, p),
       symmetries_(model_symmetries(*model_)),
-      near_symmetries_(near_symmetries(*model_, p.verify.near_symmetry)) {
+      near_symmetries_(near_symmetries(*model_, p.verify.near_symmetry)),
+      range_(resolve_view_range(p.views, model_extent(*model_).radius, cam.focal())) {
+  if (symmetries_.empty()) symmetries_.emplace_back();
   if (p_.colour.enabled)
     if (const auto rgb = model::dominant_face_colour(*model_)) {
       colour_ = std::make_unique<ColourRegions>(*model_, *templates_, cam_, *rgb, p_.colour);
@@ -293,6 +296,12 @@ DetectionResult Detector::run(std::span<Hypothesis> out) {
     h.T_cam_obj = pose_at_pixel(*templates_, c.index, cam_, 2.0 * c.x + 0.5, 2.0 * c.y + 0.5);
     h.T_template = h.T_cam_obj;
     aligner_.refine(pyramid_, h.T_cam_obj);
+    // Refined out of the view range (a far pose seen edge-on, nested in the object's image):
+    // not a hypothesis.
+    if (p_.verify.view_margin_deg < 180.0 &&
+        !in_view_range(range_, templates_->centre, symmetries_, h.T_cam_obj, p_.verify.view_margin_deg,
+                       p_.verify.inplane_margin_deg))
+      continue;
     h.verification = aligner_.verify(pyramid_, h.T_cam_obj);
     h.verified = h.verification.samples >= p_.verify.min_samples && h.verification.score >= p_.verify.accept_score;
     // Below the edge test's bar, but edges enough for a partly hidden, noisy or blurred view: its

@@ -181,8 +181,9 @@ class Detector {
   std::vector<Candidate> fine_;           // fine candidates
   std::vector<Candidate> picked_;         // distinct fine candidates
   std::vector<Hypothesis> work_;          // refined hypotheses before sorting
-  std::vector<geometry::SE3> symmetries_;  // of the model (ambiguity of verified poses)
+  std::vector<geometry::SE3> symmetries_;  // of the model (ambiguity of verified poses; at least the identity)
   std::vector<geometry::SE3> near_symmetries_;  // detect.verify.near_symmetry: twins a pose must stand out from
+  ViewRange range_;                        // p.views resolved for the model and camera
 };
 
 }  // namespace v4r::detection

@@ -136,6 +136,12 @@ struct VerifyParams {
   /// matches at least enclosing_factor times as many edge samples in runs, the enclosing pose is
   /// verified and ranked first, the nested one no longer verified (0: off).
   double enclosing_factor = 1.0;
+  /// Degrees: a hypothesis refined to a pose outside the view range (detect.views.*, every
+  /// symmetric equivalent) widened by this in elevation and distance (in_view_range), and by
+  /// inplane_margin_deg in the image's turn, is dropped (180: never): a far pose seen edge-on,
+  /// below the elevations searched, fits the outline of one face of the object.
+  double view_margin_deg = 5.0;
+  double inplane_margin_deg = 15.0;
 };
 
 /// \brief The colour stage (the paper's sponge): used when the model's faces carry a colour
