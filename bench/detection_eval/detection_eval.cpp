@@ -88,8 +88,7 @@ void diagnose(Detector& det, const TemplateSet& set, const model::Model& m, cons
     const TemplateSet& tsx = set;
     const Eigen::Vector3d c_cam = T * tsx.centre;
     const Eigen::Vector2d a = cam.project(c_cam);
-    const Eigen::Vector3d ray = c_cam.normalized();
-    const geometry::SE3 Tv = geometry::SE3(Eigen::Quaterniond::FromTwoVectors(ray, Eigen::Vector3d::UnitZ()), Eigen::Vector3d::Zero()) * T;
+    const geometry::SE3 Tv = on_axis(T, tsx.centre);
     double best_d = 1e9;
     std::uint32_t best_v = 0;
     for (std::uint32_t vi = 0; vi < tsx.views.size(); ++vi) {
@@ -155,8 +154,7 @@ void diagnose(Detector& det, const TemplateSet& set, const model::Model& m, cons
   (void)vr;
   {
     const Eigen::Vector3d eye = T.inverse().translation() - set.centre;
-    const Eigen::Vector3d cc = T * set.centre;
-    const Eigen::Vector3d z = (geometry::SE3(Eigen::Quaterniond::FromTwoVectors(cc.normalized(), Eigen::Vector3d::UnitZ()), Eigen::Vector3d::Zero()) * T).rotation().col(2);
+    const Eigen::Vector3d z = on_axis(T, set.centre).rotation().col(2);
     const ViewRange rv = resolve_view_range(params.views, model_extent(m).radius, cam.focal());
     fmt::print(stderr, "   truth's view: elevation {:.1f} deg, in-plane {:.1f} deg, distance {:.3f} m (range {:.3f}..{:.3f}); within the margins {}\n",
                std::asin(eye.z() / eye.norm()) * 57.3, std::atan2(z.x(), -z.y()) * 57.3, eye.norm(), rv.distance_min_m,

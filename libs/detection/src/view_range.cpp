@@ -6,16 +6,19 @@
 
 namespace v4r::detection {
 
+geometry::SE3 on_axis(const geometry::SE3& T, const Eigen::Vector3d& centre) {
+  const Eigen::Vector3d c_cam = T * centre;
+  return geometry::SE3(Eigen::Quaterniond::FromTwoVectors(c_cam.normalized(), Eigen::Vector3d::UnitZ()), Eigen::Vector3d::Zero()) * T;
+}
+
 bool in_view_range(const ViewRange& v, const Eigen::Vector3d& centre, std::span<const geometry::SE3> symmetries,
                    const geometry::SE3& T, double m, double m_inplane) {
   constexpr double kDeg = 3.14159265358979323846 / 180.0;
   const double dist_ratio = 1.0 + m / 45.0;
   // The camera turned about its centre until the model's centre lies on the optical axis (as the
   // template views are made): the in-plane turn of an object seen off the axis is then its own.
-  const Eigen::Vector3d c_cam = T * centre;
-  if (!(c_cam.norm() > 1e-12)) return false;
-  const geometry::SE3 T_axis =
-      geometry::SE3(Eigen::Quaterniond::FromTwoVectors(c_cam.normalized(), Eigen::Vector3d::UnitZ()), Eigen::Vector3d::Zero()) * T;
+  if (!((T * centre).norm() > 1e-12)) return false;
+  const geometry::SE3 T_axis = on_axis(T, centre);
   for (const geometry::SE3& S : symmetries) {
     const geometry::SE3 TS = T_axis * S;
     const Eigen::Vector3d eye = TS.inverse().translation() - centre;

@@ -11,6 +11,11 @@
 
 namespace v4r::detection {
 
+/// T_cam_obj with the camera turned about its centre until the object-frame point `centre` lies
+/// on the optical axis (in front of the camera): the view a template of the pose holds
+/// (pose_at_pixel turns it back). `centre` must not project to the camera centre itself.
+[[nodiscard]] geometry::SE3 on_axis(const geometry::SE3& T_cam_obj, const Eigen::Vector3d& centre);
+
 /// True when T_cam_obj, or one of its equivalents under the model's `symmetries`, sees the model
 /// from within `range` (resolved: resolve_view_range) widened by `margin_deg`: the camera's
 /// elevation above the object's x-y plane, seen from the bounding box centre `centre`, within
