@@ -108,7 +108,7 @@ struct VerifyParams {
   /// stand_out_max_leak (colour images only). A partly hidden object: its visible edges match,
   /// nothing else in the image comes close. stand_out_score >= accept_score: off.
   double stand_out_score = 0.55;
-  double stand_out_margin = 0.1;
+  double stand_out_margin = 0.08;
   double stand_out_max_leak = 0.5;
   /// ... where a distinct pose within stand_out_margin (or scoring more) is no rival when its
   /// silhouette leaks at least this much more, and at least stand_out_max_leak (an outline on
