@@ -46,6 +46,7 @@ constexpr double kDeg = 3.14159265358979323846 / 180.0;
 constexpr int kMaxFineWindow = 8;
 constexpr double kPolishScoreDrop = 0.02;  // a polished pose may score this much less than before
 constexpr int kTieMinSamples = 10;          // distinctive edge samples each pose of a near tie needs
+constexpr std::size_t kMaxConsensus = 32;   // members of a consensus cluster considered, at most
 constexpr std::size_t kMaxFineAnchors = (2 * kMaxFineWindow + 2) * (2 * kMaxFineWindow + 2);
 GradientThreshold search_threshold(const SearchParams& s) { return {s.min_gradient, s.min_gradient_floor, s.noise_factor}; }
 }  // namespace
@@ -342,6 +343,7 @@ DetectionResult Detector::run(std::span<Hypothesis> out) {
   });
   break_near_tie();
   give_way_to_enclosing();
+  take_consensus();
   polish_best();
   // Hypotheses that converged to the same pose are given once (the best ranked).
   std::size_t n = 0;
@@ -500,6 +502,37 @@ void Detector::give_way_to_enclosing() {
     prefer_twin(work_[0]);
     return;
   }
+}
+
+void Detector::take_consensus() {
+  const VerifyParams& v = p_.verify;
+  if (!(v.consensus_score > 0.0) || work_.empty() || !work_[0].verified) return;
+  // The cluster: verified poses (sorted first, by decreasing score) near the best one.
+  const double floor = work_[0].verification.score - v.consensus_score;
+  std::size_t members[kMaxConsensus];
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < work_.size() && n < kMaxConsensus; ++i) {
+    if (!work_[i].verified || work_[i].verification.score < floor) break;
+    const PoseError e = symmetric_pose_error(work_[i].T_cam_obj, work_[0].T_cam_obj, symmetries_);
+    if (e.rotation <= v.consensus_deg * kDeg && e.translation <= v.consensus_m) members[n++] = i;
+  }
+  if (n < 3) return;
+  // Its medoid: the least summed distance to the others (turn and shift, each in its radius).
+  std::size_t best = 0;
+  double best_cost = 0.0;
+  for (std::size_t a = 0; a < n; ++a) {
+    double cost = 0.0;
+    for (std::size_t b = 0; b < n; ++b) {
+      if (a == b) continue;
+      const PoseError e = symmetric_pose_error(work_[members[a]].T_cam_obj, work_[members[b]].T_cam_obj, symmetries_);
+      cost += e.rotation / (v.consensus_deg * kDeg) + e.translation / v.consensus_m;
+    }
+    if (a == 0 || cost < best_cost) {
+      best = a;
+      best_cost = cost;
+    }
+  }
+  if (best != 0) std::swap(work_[0], work_[members[best]]);
 }
 
 bool Detector::distinct(const geometry::SE3& a, const geometry::SE3& b) const {

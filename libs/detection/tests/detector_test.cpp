@@ -588,10 +588,10 @@ TEST(Detector, ANearTieIsDecidedWhereTheTwoPosesDiffer) {
 
 namespace {
 
-/// Successes and wrong verified poses over 40 blurred section renders, without (index 0) and
+/// Successes and wrong verified poses over 40 blurred renders of the fixture's model, without (index 0) and
 /// with (1) a rule that `toggle(params, on)` switches; printed, and the rule must lose nothing
 /// and avoid at least one wrong pose.
-void expect_fewer_wrong_on_blurred_sections(Fixture& f, void (*toggle)(DetectorParams&, bool)) {
+void expect_fewer_wrong_on_blurred_renders(Fixture& f, void (*toggle)(DetectorParams&, bool)) {
   int ok[2] = {0, 0}, wrong[2] = {0, 0};
   for (int on = 0; on < 2; ++on) {
     toggle(f.params, on == 1);
@@ -615,7 +615,7 @@ TEST(Detector, ANestedPoseGivesWayToThePoseAroundIt) {
   // first (detect.verify.view_margin): here they are kept, to see the rule.
   Fixture f = make(synth::ship_section_cao);
   f.params.verify.view_margin_deg = 180.0;
-  expect_fewer_wrong_on_blurred_sections(f, [](DetectorParams& p, bool on) {
+  expect_fewer_wrong_on_blurred_renders(f, [](DetectorParams& p, bool on) {
     p.verify.enclosing_factor = on ? DetectorParams{}.verify.enclosing_factor : 0.0;
   });
 }
@@ -626,7 +626,18 @@ TEST(Detector, AHypothesisRefinedOutOfTheViewRangeIsDropped) {
   // rule (measured: 25 found, 5 wrong without; 28 and 3 with).
   Fixture f = make(synth::ship_section_cao);
   f.params.verify.enclosing_factor = 0.0;
-  expect_fewer_wrong_on_blurred_sections(f, [](DetectorParams& p, bool on) {
+  expect_fewer_wrong_on_blurred_renders(f, [](DetectorParams& p, bool on) {
     p.verify.view_margin_deg = on ? DetectorParams{}.verify.view_margin_deg : 180.0;
+  });
+}
+
+TEST(Detector, TheMedoidOfNearPosesScoringAlikeIsRankedFirst) {
+  // A small box under blur: refinements from different templates stop some degrees apart, all
+  // scoring alike; the verified poses within detect.verify.consensus_deg / consensus_m of the best
+  // and consensus_score of its score scatter around the truth, and their medoid is ranked first.
+  // Counted with and without it (measured: 33 found, 7 wrong without; 34 and 6 with).
+  Fixture f = make(synth::box_cao);
+  expect_fewer_wrong_on_blurred_renders(f, [](DetectorParams& p, bool on) {
+    p.verify.consensus_score = on ? DetectorParams{}.verify.consensus_score : 0.0;
   });
 }

@@ -145,6 +145,9 @@ class Detector {
   /// detect.verify.enclosing_factor times as many edge samples in runs: a far pose nested in the
   /// object's image, on one of its faces' outline.
   void give_way_to_enclosing();
+  /// After the ranking: of the verified poses near the best one and scoring about as well
+  /// (detect.verify.consensus_*), three or more, the medoid is ranked first.
+  void take_consensus();
   /// Polishes the best verified hypothesis (EdgeAligner::polish, detect.verify.polish_*), kept
   /// unless its edge score drops by more than a little.
   void polish_best();

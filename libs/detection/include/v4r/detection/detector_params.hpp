@@ -136,6 +136,14 @@ struct VerifyParams {
   /// matches at least enclosing_factor times as many edge samples in runs, the enclosing pose is
   /// verified and ranked first, the nested one no longer verified (0: off).
   double enclosing_factor = 1.0;
+  /// Consensus: the verified poses within consensus_deg and consensus_m (modulo the symmetries)
+  /// of the best one and scoring within consensus_score of it form its cluster; with three or more
+  /// members its medoid (the member nearest to all others) is ranked first. Edges blurred or few
+  /// hold a refined pose some degrees off the truth as well as at it; refinements from different
+  /// templates scatter around the truth (0: off).
+  double consensus_score = 0.05;
+  double consensus_deg = 8.0;
+  double consensus_m = 0.05;
   /// Degrees: a hypothesis refined to a pose outside the view range (detect.views.*, every
   /// symmetric equivalent) widened by this in elevation and distance (in_view_range), and by
   /// inplane_margin_deg in the image's turn, is dropped (180: never): a far pose seen edge-on,
