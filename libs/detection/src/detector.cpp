@@ -36,8 +36,8 @@ Detector::Detector(std::shared_ptr<const model::Model> model, std::shared_ptr<co
   for (std::size_t k = 0; k + 1 < templates_->child_offsets.size(); ++k)
     max_children = std::max<std::size_t>(max_children, templates_->child_offsets[k + 1] - templates_->child_offsets[k]);
   fine_.reserve(static_cast<std::size_t>(std::max(p_.search.fine_expand, p_.colour.fine_expand)) * max_children + 1);
-  picked_.reserve(static_cast<std::size_t>(p_.search.max_hypotheses));
-  work_.reserve(static_cast<std::size_t>(p_.search.max_hypotheses));
+  picked_.reserve(static_cast<std::size_t>(p_.search.max_hypotheses + p_.search.extra_hypotheses));
+  work_.reserve(static_cast<std::size_t>(p_.search.max_hypotheses + p_.search.extra_hypotheses));
 }
 
 namespace {
@@ -254,8 +254,7 @@ void Detector::fine_search() {
   std::sort(fine_.begin(), fine_.end(), [](const Candidate& a, const Candidate& b) { return a.score > b.score; });
   // Distinct hypotheses: not the same place with nearly the same view.
   picked_.clear();
-  const std::size_t want = static_cast<std::size_t>(
-      use_colour_ ? std::min(p_.colour.max_hypotheses, p_.search.max_hypotheses) : p_.search.max_hypotheses);
+  const std::size_t want = first_batch() + static_cast<std::size_t>(use_colour_ ? 0 : p_.search.extra_hypotheses);
   for (const Candidate& c : fine_) {
     if (picked_.size() >= want) break;
     bool dup = false;
@@ -270,6 +269,11 @@ void Detector::fine_search() {
     }
     if (!dup) picked_.push_back(c);
   }
+}
+
+std::size_t Detector::first_batch() const {
+  return static_cast<std::size_t>(use_colour_ ? std::min(p_.colour.max_hypotheses, p_.search.max_hypotheses)
+                                             : p_.search.max_hypotheses);
 }
 
 Detector::CandidateInfo Detector::candidate(bool picked, std::size_t i) const {
@@ -290,7 +294,12 @@ DetectionResult Detector::run(std::span<Hypothesis> out) {
   const auto t1 = Clock::now();
   r.search_ms = ms_between(t0, t1);
   work_.clear();
-  for (const Candidate& c : picked_) {
+  const std::size_t first = first_batch();
+  bool any_verified = false;
+  for (std::size_t k = 0; k < picked_.size(); ++k) {
+    // The extra candidates only when none of the first batch is verified.
+    if (k == first && any_verified) break;
+    const Candidate& c = picked_[k];
     Hypothesis h;
     h.view = c.index;
     h.template_score = c.score / 1000.0;
@@ -313,6 +322,7 @@ DetectionResult Detector::run(std::span<Hypothesis> out) {
       h.verified = h.verification.leak_samples >= p_.verify.leak_min_samples && h.verification.leak >= 0.0 &&
                    h.verification.leak <= p_.verify.max_leak;
     }
+    any_verified = any_verified || h.verified;
     work_.push_back(h);
   }
   resolve_twins();

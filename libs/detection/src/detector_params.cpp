@@ -45,6 +45,8 @@ void add_params(ParamRegistry& r, DetectorParams& p) {
   r.add("detect.search.fine_expand", &s.fine_expand, 1, 1024, "", "best probed candidates whose neighbouring views are searched at 1/2 resolution");
   r.add("detect.search.fine_window", &s.fine_window, 0, 8, "px", "half window at 1/2 resolution around a coarse candidate");
   r.add("detect.search.max_hypotheses", &s.max_hypotheses, 1, 64, "", "hypotheses refined and verified per frame");
+  r.add("detect.search.extra_hypotheses", &s.extra_hypotheses, 0, 64, "",
+        "when none of those is verified, this many more are refined and verified (0: none)");
   auto& f = p.verify;
   r.add("detect.verify.sample_spacing", &f.sample_spacing_px, 1.0, 50.0, "px", "spacing of the projected model's edge samples");
   r.add("detect.verify.max_samples", &f.max_samples, 16, 4096, "", "edge samples per pose at most");

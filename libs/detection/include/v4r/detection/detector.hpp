@@ -148,6 +148,8 @@ class Detector {
   /// After the ranking: of the verified poses near the best one and scoring about as well
   /// (detect.verify.consensus_*), three or more, the medoid is ranked first.
   void take_consensus();
+  /// Hypotheses refined and verified first (detect.search.max_hypotheses, or detect.colour's).
+  std::size_t first_batch() const;
   /// Polishes the best verified hypothesis (EdgeAligner::polish, detect.verify.polish_*), kept
   /// unless its edge score drops by more than a little.
   void polish_best();

@@ -50,6 +50,9 @@ struct SearchParams {
   int fine_expand = 256;          ///< best probed candidates whose neighbouring views are searched
   int fine_window = 2;            ///< px at 1/2 resolution searched around a coarse candidate
   int max_hypotheses = 16;        ///< hypotheses refined and verified per frame
+  /// When none of those is verified, this many more (the next best distinct candidates) are
+  /// refined and verified: a partly hidden object whose view ranks lower (0: none).
+  int extra_hypotheses = 8;
 };
 
 /// \brief Local refinement and verification of a hypothesis against the image's edges.
