@@ -338,7 +338,10 @@ DetectionResult Detector::run(std::span<Hypothesis> out) {
       if (margin <= 0.0) continue;
       for (const Hypothesis& o : work_) {
         if (&o == &h || !o.verified || o.verification.score < h.verification.score - margin) continue;
-        if (distinct(o.T_cam_obj, h.T_cam_obj)) {
+        // A near-symmetric twin is no ambiguity when the twin test (resolve_twins) judged the pair.
+        const bool judged_twin =
+            !p_.verify.twins_ambiguous && p_.verify.twin_margin > 0.0 && is_twin(o.T_cam_obj, h.T_cam_obj);
+        if (distinct(o.T_cam_obj, h.T_cam_obj) && !judged_twin) {
           h.ambiguous = true;
           break;
         }
@@ -543,6 +546,12 @@ void Detector::take_consensus() {
     }
   }
   if (best != 0) std::swap(work_[0], work_[members[best]]);
+}
+
+bool Detector::is_twin(const geometry::SE3& a, const geometry::SE3& b) const {
+  for (const geometry::SE3& S : near_symmetries_)
+    if (!distinct(a, b * S)) return true;
+  return false;
 }
 
 bool Detector::distinct(const geometry::SE3& a, const geometry::SE3& b) const {

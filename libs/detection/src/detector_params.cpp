@@ -86,7 +86,9 @@ void add_params(ParamRegistry& r, DetectorParams& p) {
   r.add("detect.verify.leak_group_samples", &f.leak_group_samples, 0, 4096, "",
         "an outside colour is compared with the inside colours of its own silhouette edge when that edge has this many samples (0: with all)");
   r.add("detect.verify.colour_ambiguity", &f.colour_ambiguity, 0.0, 1.0, "",
-        "a pose verified by colour is withdrawn when a distinct verified pose scores at least its score minus this (0: off)");
+        "a pose verified by colour is withdrawn when a distinct verified pose, not its near-symmetric twin, scores at least its score minus this (0: off)");
+  r.add("detect.verify.twins_ambiguous", &f.twins_ambiguous,
+        "a near-symmetric twin within the ambiguity margins withdraws a pose too (false: the twin test judges the pair)");
   r.add("detect.verify.edge_ambiguity", &f.edge_ambiguity, 0.0, 1.0, "",
         "a pose verified by its edges is withdrawn when a distinct verified pose scores at least its score minus this (0: off)");
   r.add("detect.verify.distinct_m", &f.distinct_m, 0.0, 10.0, "m", "poses farther apart than this are distinct (colour ambiguity)");

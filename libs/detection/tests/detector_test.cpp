@@ -4,8 +4,10 @@
 // no heap allocation per frame. The large measurement is bench/detection_eval (numbers in the
 // README's detection section); these tests keep ctest short with a few images per condition.
 #include <atomic>
+#include <initializer_list>
 #include <cstdlib>
 #include <new>
+#include <tuple>
 
 #include <gtest/gtest.h>
 
@@ -51,14 +53,15 @@ struct Fixture {
   geometry::PinholeCamera cam = synth::default_camera();
 };
 
-/// Templates over a narrower view range than the default (quicker to build in a test).
-Fixture make(std::string (*cao)()) {
+/// Templates over a narrower view range than the default (quicker to build in a test): half the
+/// azimuths unless `all_azimuths`.
+Fixture make(std::string (*cao)(), bool all_azimuths = false) {
   Fixture f;
   auto m = model::parse_cao(cao(), "m");
   EXPECT_TRUE(m);
   f.model = std::make_shared<const model::Model>(std::move(*m));
   f.params.views.azimuth_min_deg = 0;
-  f.params.views.azimuth_max_deg = 180;
+  f.params.views.azimuth_max_deg = all_azimuths ? 360 : 180;
   f.params.views.inplane_min_deg = -20;
   f.params.views.inplane_max_deg = 20;
   auto ts = build_templates(*f.model, f.cam, f.params);
@@ -84,6 +87,18 @@ std::pair<int, int> run(const Fixture& f, scenes::Scene s, int n, unsigned seed)
     const PoseError e = symmetric_pose_error(hyp[0].T_cam_obj, T, f.symmetries);
     if (e.translation <= 0.05 && e.rotation <= 5 * kDeg) ++ok;
     else ++wrong;
+  }
+  return {ok, wrong};
+}
+
+/// run() summed over scenes, `n` renders each, the seed advancing by 100 from scene to scene.
+std::pair<int, int> run_scenes(const Fixture& f, std::initializer_list<scenes::Scene> ss, int n, unsigned seed) {
+  int ok = 0, wrong = 0;
+  for (const scenes::Scene s : ss) {
+    const auto [o, w] = run(f, s, n, seed);
+    seed += 100;
+    ok += o;
+    wrong += w;
   }
   return {ok, wrong};
 }
@@ -563,7 +578,7 @@ TEST(Detector, ANearTieIsDecidedWhereTheTwoPosesDiffer) {
   // Two distinct verified poses scoring within detect.verify.tie_score of each other: the one
   // whose distinctive edge samples match better is ranked first (detect.verify.tie_margin).
   // Counted over box and section renders under blur, noise and occlusion, with and without it: no
-  // worse (measured: 60 found, 4 wrong either way here; bench/detection_eval over 1200 renders:
+  // worse (measured: 62 found, 2 wrong either way here; bench/detection_eval over 1200 renders:
   // 1105 -> 1111 found, 39 -> 33 wrong).
   int ok[2] = {0, 0}, wrong[2] = {0, 0};
   for (std::string (*cao)() : {synth::box_cao, synth::ship_section_cao}) {
@@ -572,13 +587,9 @@ TEST(Detector, ANearTieIsDecidedWhereTheTwoPosesDiffer) {
       if (on == 0) f.params.verify.tie_score = 0.0;
       else f.params.verify.tie_score = DetectorParams{}.verify.tie_score;
       ASSERT_GT(DetectorParams{}.verify.tie_score, 0.0);
-      unsigned seed = 300;
-      for (const auto s : {scenes::Scene::kBlur, scenes::Scene::kNoise, scenes::Scene::kOcclusion}) {
-        const auto [o, w] = run(f, s, 12, seed);
-        seed += 100;
-        ok[on] += o;
-        wrong[on] += w;
-      }
+      const auto [o, w] = run_scenes(f, {scenes::Scene::kBlur, scenes::Scene::kNoise, scenes::Scene::kOcclusion}, 12, 300);
+      ok[on] += o;
+      wrong[on] += w;
     }
   }
   std::printf("without: %d found, %d wrong; with: %d found, %d wrong\n", ok[0], wrong[0], ok[1], wrong[1]);
@@ -662,6 +673,25 @@ TEST(Detector, WithNothingVerifiedTheNextCandidatesAreTried) {
     }
   }
   std::printf("without: %d found, %d wrong; with: %d found, %d wrong\n", ok[0], wrong[0], ok[1], wrong[1]);
+  EXPECT_GT(ok[1], ok[0]);
+  EXPECT_GE(ok[1] - ok[0], 2 * (wrong[1] - wrong[0]));
+}
+
+TEST(Detector, ANearSymmetricTwinLeavesAPoseVerifiedByColourToTheTwinTest) {
+  // The section turned about its vertical axis differs only by 2 cm of wall: a pose verified by
+  // colour and its twin often both pass, and as rivals within colour_ambiguity they withdrew each
+  // other; the twin test (twin_margin) judges such a pair instead. Counted with and without
+  // (detect.verify.twins_ambiguous) over noisy, blurred, cluttered and partly hidden section
+  // renders seen from all sides (measured: 135 found, 5 wrong with twins ambiguous; 138 and 6
+  // judged): at least twice as many found as wrong gained.
+  Fixture f = make(synth::ship_section_cao, true);
+  int ok[2] = {0, 0}, wrong[2] = {0, 0};
+  for (int on = 0; on < 2; ++on) {
+    f.params.verify.twins_ambiguous = on == 0;
+    std::tie(ok[on], wrong[on]) = run_scenes(
+        f, {scenes::Scene::kNoise, scenes::Scene::kBlur, scenes::Scene::kClutter, scenes::Scene::kOcclusion}, 40, 1100);
+  }
+  std::printf("ambiguous: %d found, %d wrong; judged: %d found, %d wrong\n", ok[0], wrong[0], ok[1], wrong[1]);
   EXPECT_GT(ok[1], ok[0]);
   EXPECT_GE(ok[1] - ok[0], 2 * (wrong[1] - wrong[0]));
 }

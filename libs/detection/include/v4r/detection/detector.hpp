@@ -150,6 +150,8 @@ class Detector {
   void take_consensus();
   /// Hypotheses refined and verified first (detect.search.max_hypotheses, or detect.colour's).
   std::size_t first_batch() const;
+  /// Whether a is b turned by one of the model's near symmetries (within distinct_m / distinct_deg).
+  bool is_twin(const geometry::SE3& a, const geometry::SE3& b) const;
   /// Polishes the best verified hypothesis (EdgeAligner::polish, detect.verify.polish_*), kept
   /// unless its edge score drops by more than a little.
   void polish_best();

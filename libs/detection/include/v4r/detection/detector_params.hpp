@@ -100,8 +100,11 @@ struct VerifyParams {
   /// edge has at least this many samples (a face in shadow beside a lit one; 0: with all of them).
   int leak_group_samples = 12;
   /// Such a pose is withdrawn when another verified pose, distinct (distinct_m, distinct_deg,
-  /// beyond the model's symmetries), scores at least its score minus this (0: off).
+  /// beyond the model's symmetries), scores at least its score minus this (0: off); not for its
+  /// near-symmetric twin when twin_margin > 0 (the twin test judges the pair) unless
+  /// twins_ambiguous.
   double colour_ambiguity = 0.05;
+  bool twins_ambiguous = false;
   double edge_ambiguity = 0.0;      ///< the same for a pose verified by its edges (0: off)
   double distinct_m = 0.05;         ///< metres: poses farther apart are distinct
   double distinct_deg = 5.0;        ///< degrees: ... or turned further apart
