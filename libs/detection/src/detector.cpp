@@ -254,7 +254,7 @@ void Detector::fine_search() {
   std::sort(fine_.begin(), fine_.end(), [](const Candidate& a, const Candidate& b) { return a.score > b.score; });
   // Distinct hypotheses: not the same place with nearly the same view.
   picked_.clear();
-  const std::size_t want = first_batch() + static_cast<std::size_t>(use_colour_ ? 0 : p_.search.extra_hypotheses);
+  const std::size_t want = first_batch() + static_cast<std::size_t>(p_.search.extra_hypotheses);
   for (const Candidate& c : fine_) {
     if (picked_.size() >= want) break;
     bool dup = false;
