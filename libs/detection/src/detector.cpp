@@ -519,7 +519,9 @@ void Detector::give_way_to_enclosing() {
 
 void Detector::take_consensus() {
   const VerifyParams& v = p_.verify;
-  if (!(v.consensus_score > 0.0) || work_.empty() || !work_[0].verified) return;
+  if (!(v.consensus_score > 0.0) || !(v.consensus_deg > 0.0) || !(v.consensus_m > 0.0) || work_.empty() ||
+      !work_[0].verified)
+    return;
   // The cluster: verified poses (sorted first, by decreasing score) near the best one.
   const double floor = work_[0].verification.score - v.consensus_score;
   std::size_t members[kMaxConsensus];

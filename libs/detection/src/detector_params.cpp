@@ -111,8 +111,8 @@ void add_params(ParamRegistry& r, DetectorParams& p) {
         "a verified pose nested in the box of a distinct one that stands out and matches this many times as many edge samples gives way to it (0: off)");
   r.add("detect.verify.consensus_score", &f.consensus_score, 0.0, 1.0, "",
         "verified poses near the best one (consensus_deg, consensus_m) scoring within this of it: with 3 or more, their medoid is ranked first (0: off)");
-  r.add("detect.verify.consensus_deg", &f.consensus_deg, 0.0, 180.0, "deg", "... turned at most this from the best one");
-  r.add("detect.verify.consensus_m", &f.consensus_m, 0.0, 10.0, "m", "... and at most this far from it");
+  r.add("detect.verify.consensus_deg", &f.consensus_deg, 0.1, 180.0, "deg", "... turned at most this from the best one");
+  r.add("detect.verify.consensus_m", &f.consensus_m, 0.001, 10.0, "m", "... and at most this far from it");
   r.add("detect.verify.view_margin", &f.view_margin_deg, 0.0, 180.0, "deg",
         "a hypothesis refined outside the view range (detect.views.*) widened by this in elevation and distance is dropped (180: never)");
   r.add("detect.verify.inplane_margin", &f.inplane_margin_deg, 0.0, 180.0, "deg",

@@ -104,7 +104,7 @@ struct VerifyParams {
   /// near-symmetric twin when twin_margin > 0 (the twin test judges the pair) unless
   /// twins_ambiguous.
   double colour_ambiguity = 0.05;
-  bool twins_ambiguous = false;
+  bool twins_ambiguous = false;     ///< a near-symmetric twin withdraws a pose too (see above)
   double edge_ambiguity = 0.0;      ///< the same for a pose verified by its edges (0: off)
   double distinct_m = 0.05;         ///< metres: poses farther apart are distinct
   double distinct_deg = 5.0;        ///< degrees: ... or turned further apart
