@@ -338,13 +338,11 @@ DetectionResult Detector::run(std::span<Hypothesis> out) {
       if (margin <= 0.0) continue;
       for (const Hypothesis& o : work_) {
         if (&o == &h || !o.verified || o.verification.score < h.verification.score - margin) continue;
+        if (!distinct(o.T_cam_obj, h.T_cam_obj)) continue;
         // A near-symmetric twin is no ambiguity when the twin test (resolve_twins) judged the pair.
-        const bool judged_twin =
-            !p_.verify.twins_ambiguous && p_.verify.twin_margin > 0.0 && is_twin(o.T_cam_obj, h.T_cam_obj);
-        if (distinct(o.T_cam_obj, h.T_cam_obj) && !judged_twin) {
-          h.ambiguous = true;
-          break;
-        }
+        if (!p_.verify.twins_ambiguous && p_.verify.twin_margin > 0.0 && is_twin(o.T_cam_obj, h.T_cam_obj)) continue;
+        h.ambiguous = true;
+        break;
       }
     }
     for (Hypothesis& h : work_) h.verified = h.verified && !h.ambiguous;
