@@ -22,7 +22,8 @@ Detector::Detector(std::shared_ptr<const model::Model> model, std::shared_ptr<co
       aligner_(*model_, cam, p),
       symmetries_(model_symmetries(*model_)),
       near_symmetries_(near_symmetries(*model_, p.verify.near_symmetry)),
-      range_(resolve_view_range(p.views, model_extent(*model_).radius, cam.focal())) {
+      range_(resolve_view_range(p.views, model_extent(*model_).radius, cam.focal())),
+      grazing_(*model_) {
   if (symmetries_.empty()) symmetries_.emplace_back();
   if (p_.colour.enabled)
     if (const auto rgb = model::dominant_face_colour(*model_)) {
@@ -356,6 +357,7 @@ DetectionResult Detector::run(std::span<Hypothesis> out) {
   give_way_to_enclosing();
   take_consensus();
   polish_best();
+  unfold_best();
   // Hypotheses that converged to the same pose are given once (the best ranked).
   std::size_t n = 0;
   for (std::size_t i = 0; i < work_.size() && n < out.size(); ++i) {
@@ -481,6 +483,29 @@ void Detector::polish_best() {
   const Verification v = aligner_.verify(pyramid_, T);
   if (v.samples >= p_.verify.min_samples && v.score >= work_[0].verification.score - kPolishScoreDrop)
     move_hypothesis(work_[0], T, v);
+}
+
+void Detector::unfold_best() {
+  constexpr std::size_t kMaxFaces = 8;  // detect.verify.unfold_faces is at most 8
+  const VerifyParams& v = p_.verify;
+  if (v.unfold_faces <= 0 || work_.empty() || !work_[0].verified) return;
+  Hypothesis& best = work_[0];
+  std::array<geometry::SE3, kMaxFaces> turned;
+  const Eigen::Vector3d pivot = aligner_.visible_centroid(best.T_cam_obj, templates_->centre);
+  const std::size_t n = grazing_.unfold(best.T_cam_obj, pivot, v.unfold_band_deg * kDeg, v.unfold_deg * kDeg,
+                                        std::span<geometry::SE3>(turned).first(std::min<std::size_t>(kMaxFaces, v.unfold_faces)));
+  geometry::SE3 best_T = best.T_cam_obj;
+  Verification best_v = best.verification;
+  for (std::size_t i = 0; i < n; ++i) {
+    geometry::SE3 T = turned[i];
+    aligner_.polish(pyramid_, T);
+    const Verification vt = aligner_.verify(pyramid_, T);
+    if (vt.samples >= v.min_samples && vt.score >= best_v.score + v.unfold_gain) {
+      best_T = T;
+      best_v = vt;
+    }
+  }
+  if (best_v.score > best.verification.score) move_hypothesis(best, best_T, best_v);
 }
 
 void Detector::give_way_to_enclosing() {

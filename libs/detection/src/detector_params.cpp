@@ -60,6 +60,11 @@ void add_params(ParamRegistry& r, DetectorParams& p) {
         "iterations polishing the best verified pose over all its edge samples, edges placed to a fraction of a pixel (0: off)");
   r.add("detect.verify.polish_range", &f.polish_range_px, 0.5, 32.0, "px",
         "search range and Tukey width of that polish along the edge normal");
+  r.add("detect.verify.unfold_faces", &f.unfold_faces, 0, 8, "",
+        "large faces of the best verified pose seen edge-on that are turned into view, polished and kept when the edge score rises (0: off)");
+  r.add("detect.verify.unfold_deg", &f.unfold_deg, 0.5, 45.0, "deg", "... faces seen at less than this are turned to be seen at this");
+  r.add("detect.verify.unfold_band", &f.unfold_band_deg, 0.0, 45.0, "deg", "... as are faces turned away by at most this");
+  r.add("detect.verify.unfold_gain", &f.unfold_gain, 0.0, 1.0, "", "... an unfolded pose is kept when its edge score rises by at least this");
   r.add("detect.verify.refine_tukey", &f.refine_tukey_px, 0.0, 64.0, "px",
         "after the first third of the alignment, matches are weighted by Tukey's biweight of this width (0: Huber throughout)");
   r.add("detect.verify.match_distance", &f.match_distance_px, 0.5, 10.0, "px", "a sample matches a gradient this close along its normal");

@@ -199,6 +199,14 @@ bool EdgeAligner::align_step(const GradientPyramid& g, std::size_t n, double ran
   return true;
 }
 
+Eigen::Vector3d EdgeAligner::visible_centroid(const geometry::SE3& T, const Eigen::Vector3d& fallback) {
+  const std::size_t n = projector_.sample(T, cam_, p_.sample_spacing_px, samples_);
+  if (n == 0) return fallback;
+  Eigen::Vector3d m = Eigen::Vector3d::Zero();
+  for (std::size_t i = 0; i < n; ++i) m += samples_[i].p_obj;
+  return m / static_cast<double>(n);
+}
+
 Verification EdgeAligner::verify(const GradientPyramid& g, const geometry::SE3& T) {
   set_threshold(g);
   Verification v;

@@ -10,6 +10,7 @@
 #include "v4r/detection/detector_params.hpp"
 #include "v4r/detection/edge_alignment.hpp"
 #include "v4r/detection/gradient_pyramid.hpp"
+#include "v4r/detection/grazing_faces.hpp"
 #include "v4r/detection/template_set.hpp"
 #include "v4r/geometry/camera.hpp"
 #include "v4r/geometry/se3.hpp"
@@ -155,6 +156,9 @@ class Detector {
   /// Polishes the best verified hypothesis (EdgeAligner::polish, detect.verify.polish_*), kept
   /// unless its edge score drops by more than a little.
   void polish_best();
+  /// Turns the best verified pose so that a large face it sees edge-on is seen
+  /// (GrazingFaces, detect.verify.unfold_*), polishes it and keeps it when its edge score rises.
+  void unfold_best();
   /// Moves `h` to pose T whose edge test is `v`; a leak measured at the old pose is measured again.
   void move_hypothesis(Hypothesis& h, const geometry::SE3& T, const Verification& v);
   /// Poses farther apart than detect.verify.distinct_m or distinct_deg, modulo the symmetries.
@@ -191,6 +195,7 @@ class Detector {
   std::vector<geometry::SE3> symmetries_;  // of the model (ambiguity of verified poses; at least the identity)
   std::vector<geometry::SE3> near_symmetries_;  // detect.verify.near_symmetry: twins a pose must stand out from
   ViewRange range_;                        // p.views resolved for the model and camera
+  GrazingFaces grazing_;                   // the model's large faces, to unfold (unfold_best)
 };
 
 }  // namespace v4r::detection

@@ -75,6 +75,15 @@ struct VerifyParams {
   /// polish_range px weighted by Tukey's biweight of that width (0: off).
   int polish_iterations = 10;
   double polish_range_px = 1.5;
+  /// After its polish, the best verified pose tries to unfold its faces seen edge-on
+  /// (GrazingFaces): each face of at least a tenth of the largest face's area, turned away by at
+  /// most unfold_band_deg or seen at less than unfold_deg, is turned to be seen at unfold_deg
+  /// (about the centroid of the pose's edge samples); the turned pose is polished and kept when
+  /// its edge score rises by unfold_gain. At most unfold_faces faces, the largest first (0: off).
+  int unfold_faces = 2;
+  double unfold_deg = 6.0;
+  double unfold_band_deg = 15.0;
+  double unfold_gain = 0.01;
   double match_distance_px = 1.5;   ///< px: a sample matches a gradient this close along its normal
   double match_angle_deg = 15.0;    ///< degrees: ... whose orientation is this close to the edge normal
   /// Grey levels per pixel of a matching gradient (a step of 2x this): the highest threshold, as

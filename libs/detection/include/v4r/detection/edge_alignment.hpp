@@ -52,6 +52,9 @@ class EdgeAligner {
   /// strongest aligned gradient within polish_range_px, placed by a parabola through its
   /// neighbours, Tukey-weighted. Returns the iterations that moved the pose.
   int polish(const GradientPyramid& g, geometry::SE3& T_cam_obj);
+  /// Mean object-frame point of the edge samples visible at a pose (the model's centre of what
+  /// the camera sees of it); `fallback` when none is.
+  Eigen::Vector3d visible_centroid(const geometry::SE3& T_cam_obj, const Eigen::Vector3d& fallback);
   /// The edge test of a pose.
   Verification verify(const GradientPyramid& g, const geometry::SE3& T_cam_obj);
   /// The colour test of a pose, into v.leak and v.leak_samples: colours sampled at a few pixels
