@@ -10,7 +10,7 @@ GrazingFaces::GrazingFaces(const model::Model& model, double min_area_share) {
   const auto& J = model.junctions();
   for (const model::Face& f : model.faces()) {
     if (f.loop.size() < 3) continue;
-    // Area and centroid of the polygon (its vector area, projected on the normal).
+    // The polygon's area (its vector area, projected on the normal) and the mean of its corners.
     Eigen::Vector3d c = Eigen::Vector3d::Zero(), a = Eigen::Vector3d::Zero();
     for (std::size_t i = 0; i < f.loop.size(); ++i) {
       const Eigen::Vector3d& p = J[f.loop[i]].p;
@@ -44,9 +44,10 @@ std::size_t GrazingFaces::unfold(const geometry::SE3& T, const Eigen::Vector3d& 
     if (n >= out.size()) break;
     const double seen = seen_angle(T, f);
     if (seen < -band_rad || seen >= seen_rad) continue;
-    const Eigen::Vector3d nc = R * f.normal;
-    const Eigen::Vector3d axis = nc.cross(-(T * f.centroid)).normalized();
-    if (!axis.allFinite()) continue;
+    // (A face within the band is never seen square on: the normal and the line of sight differ.)
+    const Eigen::Vector3d cross = (R * f.normal).cross(-(T * f.centroid));
+    if (!(cross.norm() > 1e-12)) continue;
+    const Eigen::Vector3d axis = cross.normalized();
     // The turn about the pivot moves the face's centre and so the line of sight to it: the angle
     // is corrected by what is still missing, a few times.
     double angle = seen_rad - seen;

@@ -38,7 +38,8 @@ class GrazingFaces {
     Eigen::Vector3d centroid, normal;  // object frame
     double area = 0.0;
   };
-  /// Elevation of the line of sight to the face's centre above its plane: > 0 seen, < 0 turned away.
+  /// Elevation of the line of sight to the face's centre (the mean of its corners) above its
+  /// plane: > 0 seen, < 0 turned away.
   static double seen_angle(const geometry::SE3& T_cam_obj, const FaceInfo& f);
   std::vector<FaceInfo> faces_;  // by decreasing area
 };
