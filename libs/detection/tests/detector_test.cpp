@@ -7,6 +7,7 @@
 #include <initializer_list>
 #include <cstdlib>
 #include <new>
+#include <optional>
 #include <tuple>
 
 #include <gtest/gtest.h>
@@ -53,17 +54,21 @@ struct Fixture {
   geometry::PinholeCamera cam = synth::default_camera();
 };
 
-/// Templates over a narrower view range than the default (quicker to build in a test): half the
-/// azimuths unless `all_azimuths`.
-Fixture make(std::string (*cao)(), bool all_azimuths = false) {
+/// The view range of a fixture's templates: narrower than the default (quicker to build in a
+/// test) over half or all the azimuths, or the default one (bench/detection_eval's).
+enum class Views { kHalfAzimuths, kAllAzimuths, kDefault };
+
+Fixture make(std::string (*cao)(), Views views = Views::kHalfAzimuths) {
   Fixture f;
   auto m = model::parse_cao(cao(), "m");
   EXPECT_TRUE(m);
   f.model = std::make_shared<const model::Model>(std::move(*m));
-  f.params.views.azimuth_min_deg = 0;
-  f.params.views.azimuth_max_deg = all_azimuths ? 360 : 180;
-  f.params.views.inplane_min_deg = -20;
-  f.params.views.inplane_max_deg = 20;
+  if (views != Views::kDefault) {
+    f.params.views.azimuth_min_deg = 0;
+    f.params.views.azimuth_max_deg = views == Views::kAllAzimuths ? 360 : 180;
+    f.params.views.inplane_min_deg = -20;
+    f.params.views.inplane_max_deg = 20;
+  }
   auto ts = build_templates(*f.model, f.cam, f.params);
   EXPECT_TRUE(ts) << ts.error().to_string();
   f.templates = std::make_shared<const TemplateSet>(std::move(*ts));
@@ -72,15 +77,16 @@ Fixture make(std::string (*cao)(), bool all_azimuths = false) {
 }
 
 /// Successes (verified best pose within 5 cm / 5 degrees) and wrong verified poses over `n`
-/// random poses rendered in scene `s`.
-std::pair<int, int> run(const Fixture& f, scenes::Scene s, int n, unsigned seed) {
+/// random poses (drawn with `seed`) rendered in scene `s` (render seeds from `render_seed`, by
+/// default `seed`).
+std::pair<int, int> run(const Fixture& f, scenes::Scene s, int n, unsigned seed, std::optional<unsigned> render_seed = {}) {
   Detector det(f.model, f.templates, f.cam, f.params);
   std::array<Hypothesis, 16> hyp;
   std::mt19937 rng(seed);
   int ok = 0, wrong = 0;
   for (int k = 0; k < n; ++k) {
     const geometry::SE3 T = scenes::random_pose(*f.model, f.params.views, f.cam, rng);
-    const cv::Mat img = scenes::render_scene(*f.model, T, f.cam, s, seed + static_cast<unsigned>(k));
+    const cv::Mat img = scenes::render_scene(*f.model, T, f.cam, s, render_seed.value_or(seed) + static_cast<unsigned>(k));
     const DetectionResult r = det.detect(io::as_colour_view(img), hyp);
     EXPECT_EQ(r.status, DetectionResult::Status::kOk);
     if (r.verified == 0) continue;
@@ -684,7 +690,7 @@ TEST(Detector, ANearSymmetricTwinLeavesAPoseVerifiedByColourToTheTwinTest) {
   // (detect.verify.twins_ambiguous) over noisy, blurred, cluttered and partly hidden section
   // renders seen from all sides (measured: 135 found, 5 wrong with twins ambiguous; 138 and 6
   // judged): at least twice as many found as wrong gained.
-  Fixture f = make(synth::ship_section_cao, true);
+  Fixture f = make(synth::ship_section_cao, Views::kAllAzimuths);
   int ok[2] = {0, 0}, wrong[2] = {0, 0};
   for (int on = 0; on < 2; ++on) {
     f.params.verify.twins_ambiguous = on == 0;
@@ -704,29 +710,15 @@ TEST(Detector, AFaceSeenEdgeOnIsUnfolded) {
   // Counted with and without on the renders of bench/detection_eval's textured and noisy box
   // scenes (the whole view range, the evaluation's seeds; measured: 76 found, 4 wrong without;
   // 79 and 1 with): more found, fewer wrong.
-  Fixture f;
-  auto m = model::parse_cao(synth::box_cao(), "box");
-  ASSERT_TRUE(m);
-  f.model = std::make_shared<const model::Model>(std::move(*m));
-  auto ts = build_templates(*f.model, f.cam, f.params);
-  ASSERT_TRUE(ts) << ts.error().to_string();
-  f.templates = std::make_shared<const TemplateSet>(std::move(*ts));
-  f.symmetries = model_symmetries(*f.model);
+  Fixture f = make(synth::box_cao, Views::kDefault);
   int ok[2] = {0, 0}, wrong[2] = {0, 0};
   for (int on = 0; on < 2; ++on) {
     f.params.verify.unfold_faces = on == 1 ? DetectorParams{}.verify.unfold_faces : 0;
-    Detector det(f.model, f.templates, f.cam, f.params);
-    std::array<Hypothesis, 16> hyp;
     for (const scenes::Scene s : {scenes::Scene::kTextured, scenes::Scene::kNoise}) {
-      std::mt19937 rng(1000u + static_cast<unsigned>(s) * 77u);  // as bench/detection_eval
-      for (int k = 0; k < 40; ++k) {
-        const geometry::SE3 T = scenes::random_pose(*f.model, f.params.views, f.cam, rng);
-        const cv::Mat img = scenes::render_scene(*f.model, T, f.cam, s, 100u + static_cast<unsigned>(k));
-        if (det.detect(io::as_colour_view(img), hyp).verified == 0) continue;
-        const PoseError e = symmetric_pose_error(hyp[0].T_cam_obj, T, f.symmetries);
-        if (e.translation <= 0.05 && e.rotation <= 5 * kDeg) ++ok[on];
-        else ++wrong[on];
-      }
+      // bench/detection_eval's seeds: poses from 1000 + 77 x the scene's index, renders from 100.
+      const auto [o, w] = run(f, s, 40, 1000u + static_cast<unsigned>(s) * 77u, 100u);
+      ok[on] += o;
+      wrong[on] += w;
     }
   }
   std::printf("without: %d found, %d wrong; with: %d found, %d wrong\n", ok[0], wrong[0], ok[1], wrong[1]);
