@@ -1,7 +1,7 @@
 // v4r - robust model-based object tracking. MIT licence.
 // The detector at 640x480 on one core (Google Benchmark): a whole detect() (gradients, search,
 // refinement and verification of the hypotheses) on rendered colour images of the box in clutter,
-// and the template build of the box over the default view range.
+// the template build of the box over the default view range, and the edge test of one pose.
 #include <array>
 #include <memory>
 #include <random>
@@ -11,6 +11,7 @@
 
 #include "../libs/detection/tests/detection_scenes.hpp"
 #include "v4r/detection/detector.hpp"
+#include "v4r/detection/edge_alignment.hpp"
 #include "v4r/io/frame_source.hpp"
 #include "v4r/model/cao_reader.hpp"
 
@@ -101,5 +102,32 @@ void BM_BuildBoxTemplates(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_BuildBoxTemplates)->Unit(benchmark::kMillisecond)->Iterations(1);
+
+/// The edge test of one pose (EdgeAligner::verify) on the ship section in clutter, at the true
+/// pose of 8 renders; Arg 1: with the continued-edge rule (detect.verify.continued_*), Arg 0:
+/// without.
+void BM_VerifySection(benchmark::State& state) {
+  auto m = model::parse_cao(synth::ship_section_cao(), "section");
+  DetectorParams p;
+  if (state.range(0) == 0) p.verify.continued_reach = 0.0;
+  const auto cam = synth::default_camera();
+  EdgeAligner aligner(*m, cam, p);
+  std::mt19937 rng(7);
+  std::vector<GradientPyramid> g;
+  std::vector<geometry::SE3> poses;
+  for (int k = 0; k < 8; ++k) {
+    poses.push_back(scenes::random_pose(*m, p.views, cam, rng));
+    const cv::Mat img = scenes::render_scene(*m, poses.back(), cam, scenes::Scene::kClutter, 50u + static_cast<unsigned>(k));
+    g.emplace_back(cam.width, cam.height, p.search.fine_spread, p.search.coarse_spread);
+    g.back().compute(io::as_colour_view(img), GradientThreshold{p.verify.min_gradient, p.verify.min_gradient_floor, p.verify.noise_factor});
+  }
+  std::size_t k = 0;
+  for (auto _ : state) {
+    const Verification v = aligner.verify(g[k % g.size()], poses[k % g.size()]);
+    ++k;
+    benchmark::DoNotOptimize(v.in_runs);
+  }
+}
+BENCHMARK(BM_VerifySection)->Arg(0)->Arg(1)->ArgName("continued")->Unit(benchmark::kMicrosecond);
 
 }  // namespace

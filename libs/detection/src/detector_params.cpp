@@ -82,6 +82,10 @@ void add_params(ParamRegistry& r, DetectorParams& p) {
         "a sample's gradient is summed over this many pixels either side along the edge (noise averages out; 0: one pixel)");
   r.add("detect.verify.short_pieces", &f.short_pieces, "an edge piece shorter than min_run samples counts when all of it matches");
   r.add("detect.verify.min_run", &f.min_run, 1, 64, "", "matched samples count only in runs of this many consecutive matches along an edge");
+  r.add("detect.verify.continued_reach", &f.continued_reach, 0.0, 4.0, "",
+        "an edge whose line the image continues past both ends does not count: probed out to this x its length (12..40 px; 0: off)");
+  r.add("detect.verify.continued_share", &f.continued_share, 0.1, 1.0, "",
+        "... an end is continued when this share of its probes (every 4 px) match a gradient of the edge's orientation");
   r.add("detect.verify.accept_score", &f.accept_score, 0.0, 1.0, "", "share of matched edge samples of a verified pose");
   r.add("detect.verify.leak_score", &f.leak_score, 0.0, 1.0, "",
         "a pose scoring this or more (below accept_score) is verified when its silhouette stands out in colour (colour images; >= accept_score: off)");

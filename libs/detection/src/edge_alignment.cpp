@@ -47,6 +47,8 @@ EdgeAligner::EdgeAligner(const model::Model& model, const geometry::PinholeCamer
       projector_(model, p.templates.crease_angle_deg * kDeg),
       samples_(static_cast<std::size_t>(std::max(16, p.verify.max_samples))),
       matched_(samples_.size(), 0),
+      continued_(samples_.size(), 0),
+      own_(static_cast<std::size_t>(std::max(0, cam.width)) * static_cast<std::size_t>(std::max(0, cam.height)), 0),
       twin_px_(samples_.size()),
       twin_matched_(samples_.size(), 0),
       contrast_(features::SilhouetteContrastParams{.min_group_samples = p.verify.leak_group_samples}) {}
@@ -207,6 +209,69 @@ Eigen::Vector3d EdgeAligner::visible_centroid(const geometry::SE3& T, const Eige
   return m / static_cast<double>(n);
 }
 
+void EdgeAligner::paint_own(std::size_t n, std::uint8_t value) {
+  constexpr int kOwn = 3;  // px: a probe this close to one of the pose's samples is on its own edges
+  const int w = cam_.width, h = cam_.height;
+  for (std::size_t i = 0; i < n; ++i) {
+    const int cx = round_px(samples_[i].px.x()), cy = round_px(samples_[i].px.y());
+    for (int y = std::max(0, cy - kOwn); y <= std::min(h - 1, cy + kOwn); ++y)
+      for (int x = std::max(0, cx - kOwn); x <= std::min(w - 1, cx + kOwn); ++x)
+        own_[static_cast<std::size_t>(y) * static_cast<std::size_t>(w) + static_cast<std::size_t>(x)] = value;
+  }
+}
+
+void EdgeAligner::mark_continued(const GradientPyramid& g, std::size_t n) {
+  std::fill_n(continued_.begin(), n, std::uint8_t{0});
+  if (!(p_.continued_reach > 0.0) || g.width() != cam_.width || g.height() != cam_.height) return;
+  constexpr double kStep = 4.0, kMinReach = 12.0, kMaxReach = 40.0;  // px
+  constexpr int kMinProbes = 3;
+  const int w = g.width(), h = g.height();
+  paint_own(n, 1);
+  // A gradient of the edge's orientation (either polarity) within 1.5 px of q along n.
+  const auto matches_at = [&](const Eigen::Vector2d& q, const Eigen::Vector2d& nn) {
+    for (int k = -3; k <= 3; ++k) {
+      const int x = round_px(q.x() + 0.5 * k * nn.x()), y = round_px(q.y() + 0.5 * k * nn.y());
+      if (x < 1 || y < 1 || x >= w - 1 || y >= h - 1) return false;
+      const double gx = g.gx(x, y), gy = g.gy(x, y), m2 = gx * gx + gy * gy;
+      if (m2 < min_sobel2_) continue;
+      const double dot = gx * nn.x() + gy * nn.y();
+      if (dot * dot >= cos_match_ * cos_match_ * m2) return true;
+    }
+    return false;
+  };
+  // Whether the line goes on from `end` along `dir` for `reach` px: probes off the image or on
+  // the pose's own edges are not counted.
+  const auto continued = [&](const Eigen::Vector2d& end, const Eigen::Vector2d& dir, const Eigen::Vector2d& nn,
+                             double reach) {
+    int probes = 0, hits = 0;
+    for (double t = kStep; t <= reach; t += kStep) {
+      const Eigen::Vector2d q = end + t * dir;
+      const int x = round_px(q.x()), y = round_px(q.y());
+      if (x < 1 || y < 1 || x >= w - 1 || y >= h - 1) continue;
+      if (own_[static_cast<std::size_t>(y) * static_cast<std::size_t>(w) + static_cast<std::size_t>(x)] != 0) continue;
+      ++probes;
+      hits += matches_at(q, nn) ? 1 : 0;
+    }
+    return probes >= kMinProbes && hits >= p_.continued_share * probes;
+  };
+  for (std::size_t a = 0; a < n;) {
+    std::size_t b = a + 1;
+    while (b < n && samples_[b].piece == samples_[a].piece) ++b;
+    if (b - a >= static_cast<std::size_t>(std::max(2, p_.min_run))) {
+      const Eigen::Vector2d p0 = samples_[a].px, p1 = samples_[b - 1].px;
+      const double length = (p1 - p0).norm();
+      if (length > 0.0) {
+        const Eigen::Vector2d d = (p1 - p0) / length;
+        const double reach = std::clamp(p_.continued_reach * length, kMinReach, kMaxReach);
+        if (continued(p0, -d, samples_[a].normal, reach) && continued(p1, d, samples_[b - 1].normal, reach))
+          std::fill(continued_.begin() + static_cast<long>(a), continued_.begin() + static_cast<long>(b), std::uint8_t{1});
+      }
+    }
+    a = b;
+  }
+  paint_own(n, 0);
+}
+
 Verification EdgeAligner::verify(const GradientPyramid& g, const geometry::SE3& T) {
   set_threshold(g);
   Verification v;
@@ -243,6 +308,7 @@ Verification EdgeAligner::verify(const GradientPyramid& g, const geometry::SE3& 
     gy *= k;
     return true;
   };
+  mark_continued(g, n);
   for (std::size_t i = 0; i < n; ++i) {
     const EdgeSample& s = samples_[i];
     int sign = 0;
@@ -270,7 +336,7 @@ Verification EdgeAligner::verify(const GradientPyramid& g, const geometry::SE3& 
       best = std::abs(dot);
       sign = dot > 0 ? 1 : -1;
     }
-    const bool ok = sign != 0;
+    const bool ok = sign != 0 && continued_[i] == 0;
     matched_[i] = ok ? 1 : 0;
     if (s.piece != run_piece) {
       close_run(true);

@@ -98,6 +98,12 @@ struct VerifyParams {
   int tangent_support = 1;
   bool short_pieces = true;         ///< an edge piece shorter than min_run counts when all of it matches
   int min_run = 4;                  ///< consecutive matched samples of one polarity along an edge that count
+  /// An edge piece whose line the image continues beyond both its ends (an occluder's side, a
+  /// line of the background that a wrong pose lies along) does not count: probes every 4 px out
+  /// to this times the piece's length (12..40 px) past each end, on neither the pose's own edges;
+  /// 0: off.
+  double continued_reach = 0.5;
+  double continued_share = 0.8;     ///< ... an end is continued when this share of its probes match a gradient
   double accept_score = 0.75;       ///< share of samples matched for a verified pose
   /// A pose scoring at least this (below accept_score) is verified when its silhouette stands
   /// out in colour (EdgeAligner::measure_leak: leak <= max_leak): an occluded, noisy or blurred

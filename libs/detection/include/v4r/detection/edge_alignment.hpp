@@ -55,7 +55,9 @@ class EdgeAligner {
   /// Mean object-frame point of the edge samples visible at a pose (the model's centre of what
   /// the camera sees of it); `fallback` when none is.
   Eigen::Vector3d visible_centroid(const geometry::SE3& T_cam_obj, const Eigen::Vector3d& fallback);
-  /// The edge test of a pose.
+  /// The edge test of a pose. An edge piece whose line the image continues past both of its ends
+  /// (detect.verify.continued_*: an occluder's side or a background line the pose lies along)
+  /// counts as unmatched.
   Verification verify(const GradientPyramid& g, const geometry::SE3& T_cam_obj);
   /// The colour test of a pose, into v.leak and v.leak_samples: colours sampled at a few pixels
   /// inside and outside along the silhouette edges (features::SilhouetteContrast). A pose on the
@@ -90,6 +92,11 @@ class EdgeAligner {
   VerifyParams p_;
   /// The frame's matching threshold (detect.verify.min_gradient*, relative to g.noise()).
   void set_threshold(const GradientPyramid& g);
+  /// continued_[0, n): 1 for the samples of each edge piece of samples_[0, n) whose line the
+  /// image continues past both of its ends (detect.verify.continued_*).
+  void mark_continued(const GradientPyramid& g, std::size_t n);
+  /// Sets (1) or clears (0) own_ in the 7x7 pixels about each of samples_[0, n).
+  void paint_own(std::size_t n, std::uint8_t value);
 
   GradientThreshold threshold_;
   double min_sobel2_;  // squared threshold in Sobel units, of the last frame
@@ -97,6 +104,8 @@ class EdgeAligner {
   EdgeProjector projector_;
   std::vector<EdgeSample> samples_;
   std::vector<std::uint8_t> matched_;     // verify: per sample of samples_, matched or not
+  std::vector<std::uint8_t> continued_;   // verify: per sample, on a piece continued past both ends
+  std::vector<std::uint8_t> own_;         // mark_continued: camera-sized, 1 near the pose's samples
   std::vector<Eigen::Vector2d> twin_px_;  // compare_twins: the first pose's sample positions
   std::vector<std::uint8_t> twin_matched_;
   features::SilhouetteContrast contrast_;
