@@ -82,6 +82,8 @@ void add_params(ParamRegistry& r, DetectorParams& p) {
         "a sample's gradient is summed over this many pixels either side along the edge (noise averages out; 0: one pixel)");
   r.add("detect.verify.short_pieces", &f.short_pieces, "an edge piece shorter than min_run samples counts when all of it matches");
   r.add("detect.verify.min_run", &f.min_run, 1, 64, "", "matched samples count only in runs of this many consecutive matches along an edge");
+  r.add("detect.verify.run_gap", &f.run_gap, 0, 8, "",
+        "a run of matches goes on over up to this many unmatched samples in a row when a match of its polarity follows (0: off)");
   r.add("detect.verify.continued_reach", &f.continued_reach, 0.0, 4.0, "",
         "an edge whose line the image continues past both ends does not count: probed out to this x its length (12..40 px; 0: off)");
   r.add("detect.verify.continued_share", &f.continued_share, 0.1, 1.0, "",

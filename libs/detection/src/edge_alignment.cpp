@@ -284,6 +284,7 @@ Verification EdgeAligner::verify(const GradientPyramid& g, const geometry::SE3& 
   // A run: consecutive matches along one edge piece with one polarity (the same side brighter).
   // A piece shorter than min_run samples counts when all of it matches with one polarity.
   int run = 0, run_sign = 0, piece_samples = 0;
+  int gap = 0;  // unmatched samples bridged since the run's last match
   bool piece_broken = false;
   std::uint32_t run_piece = n > 0 ? samples_[0].piece : 0;
   const auto close_run = [&](bool piece_end) {
@@ -342,8 +343,13 @@ Verification EdgeAligner::verify(const GradientPyramid& g, const geometry::SE3& 
       close_run(true);
       piece_samples = 0;
       piece_broken = false;
+      gap = 0;
+    } else if (!ok && run > 0 && gap < p_.run_gap) {
+      ++gap;  // bridged: the run goes on if a match of its polarity follows
+      piece_broken = true;
     } else if (!ok || (run > 0 && sign != run_sign)) {
       close_run(false);
+      gap = 0;
       if (!ok) piece_broken = true;
     }
     run_piece = s.piece;
@@ -351,6 +357,7 @@ Verification EdgeAligner::verify(const GradientPyramid& g, const geometry::SE3& 
     if (ok) {
       ++run;
       run_sign = sign;
+      gap = 0;
     }
     v.matched += ok ? 1 : 0;
   }

@@ -91,3 +91,49 @@ TEST(EdgeAligner, AnEdgeOnALongerLineDoesNotCount) {
   }
   EXPECT_GE(tested, 6);
 }
+
+TEST(EdgeAligner, ARunGoesOnOverASingleMiss) {
+  // Matches count in runs of detect.verify.min_run along an edge, so that scattered matches on
+  // texture do not; a blurred or noisy spot breaks a run. With every fourth sample of the true
+  // pose's longest edge erased (a disc of one side's colour over it), that edge keeps no run of 4
+  // without detect.verify.run_gap, and counts all its matches with run_gap 1.
+  auto parsed = model::parse_cao(synth::box_cao(), "box");
+  ASSERT_TRUE(parsed);
+  const model::Model& m = *parsed;
+  const geometry::PinholeCamera cam = synth::default_camera();
+  DetectorParams p;
+  ASSERT_EQ(p.verify.min_run, 4);
+  EdgeProjector projector(m, p.templates.crease_angle_deg * kDeg);
+  std::vector<EdgeSample> smp(static_cast<std::size_t>(p.verify.max_samples));
+  std::mt19937 rng(9);
+  int tested = 0;
+  for (int k = 0; k < 6; ++k) {
+    const geometry::SE3 T = scenes::random_pose(m, p.views, cam, rng);
+    cv::Mat img = scenes::render_scene(m, T, cam, scenes::Scene::kPlain, 60u + static_cast<unsigned>(k));
+    const std::size_t n = projector.sample(T, cam, p.verify.sample_spacing_px, smp);
+    std::size_t best_a = 0, best_len = 0;
+    for (std::size_t a = 0; a < n;) {
+      std::size_t b = a + 1;
+      while (b < n && smp[b].piece == smp[a].piece) ++b;
+      if (b - a > best_len) best_len = b - a, best_a = a;
+      a = b;
+    }
+    if (best_len < 12) continue;
+    for (std::size_t i = 3; i < best_len; i += 4) {
+      const EdgeSample& s = smp[best_a + i];
+      const Eigen::Vector2d side = s.px + 6.0 * s.normal;
+      const cv::Vec3b c = img.at<cv::Vec3b>(cvRound(side.y()), cvRound(side.x()));
+      cv::circle(img, cv::Point(cvRound(s.px.x()), cvRound(s.px.y())), 3, cv::Scalar(c[0], c[1], c[2]), -1);
+    }
+    p.verify.run_gap = 0;
+    const Verification broken = verify_at(m, cam, p, p.verify.continued_reach, img, T);
+    p.verify.run_gap = 1;
+    const Verification bridged = verify_at(m, cam, p, p.verify.continued_reach, img, T);
+    // 3 of every 4 of the edge's samples, less a few beside the erased spots (measured: half of
+    // them and more).
+    EXPECT_GE(bridged.in_runs - broken.in_runs, static_cast<int>(0.4 * static_cast<double>(best_len))) << "image " << k;
+    EXPECT_EQ(bridged.matched, broken.matched) << "image " << k;
+    ++tested;
+  }
+  EXPECT_GE(tested, 4);
+}

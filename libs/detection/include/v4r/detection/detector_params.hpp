@@ -98,6 +98,9 @@ struct VerifyParams {
   int tangent_support = 1;
   bool short_pieces = true;         ///< an edge piece shorter than min_run counts when all of it matches
   int min_run = 4;                  ///< consecutive matched samples of one polarity along an edge that count
+  /// A run goes on over up to this many unmatched samples in a row (a blurred or noisy spot, an
+  /// occluder's boundary) when a match of its polarity follows them; they do not count. 0: off.
+  int run_gap = 1;
   /// An edge piece whose line the image continues beyond both its ends (an occluder's side, a
   /// line of the background that a wrong pose lies along) does not count: probes every 4 px out
   /// to this times the piece's length (12..40 px) past each end, on neither the pose's own edges;
