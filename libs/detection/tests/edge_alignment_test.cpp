@@ -1,6 +1,8 @@
 // v4r - robust model-based object tracking. MIT licence.
 // EdgeAligner's edge test: an edge whose line the image continues past both ends does not count.
 #include <random>
+#include <utility>
+#include <vector>
 
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
@@ -30,6 +32,18 @@ Verification verify_at(const model::Model& m, const geometry::PinholeCamera& cam
   return aligner.verify(g, T);
 }
 
+/// First sample and length (samples) of the longest edge piece among smp[0, n).
+std::pair<std::size_t, std::size_t> longest_piece(const std::vector<EdgeSample>& smp, std::size_t n) {
+  std::size_t best_a = 0, best_len = 0;
+  for (std::size_t a = 0; a < n;) {
+    std::size_t b = a + 1;
+    while (b < n && smp[b].piece == smp[a].piece) ++b;
+    if (b - a > best_len) best_len = b - a, best_a = a;
+    a = b;
+  }
+  return {best_a, best_len};
+}
+
 }  // namespace
 
 TEST(EdgeAligner, AnEdgeOnALongerLineDoesNotCount) {
@@ -56,14 +70,7 @@ TEST(EdgeAligner, AnEdgeOnALongerLineDoesNotCount) {
     const Verification off = verify_at(m, cam, p, 0.0, img, T);
     EXPECT_EQ(on.in_runs, off.in_runs) << "image " << k;
     // The longest edge piece, as verify samples it.
-    const std::size_t n = projector.sample(T, cam, p.verify.sample_spacing_px, smp);
-    std::size_t best_a = 0, best_len = 0;
-    for (std::size_t a = 0; a < n;) {
-      std::size_t b = a + 1;
-      while (b < n && smp[b].piece == smp[a].piece) ++b;
-      if (b - a > best_len) best_len = b - a, best_a = a;
-      a = b;
-    }
+    const auto [best_a, best_len] = longest_piece(smp, projector.sample(T, cam, p.verify.sample_spacing_px, smp));
     if (best_len < 8) continue;
     const Eigen::Vector2d p0 = smp[best_a].px, p1 = smp[best_a + best_len - 1].px;
     const Eigen::Vector2d d = (p1 - p0).normalized();
@@ -110,14 +117,7 @@ TEST(EdgeAligner, ARunGoesOnOverASingleMiss) {
   for (int k = 0; k < 6; ++k) {
     const geometry::SE3 T = scenes::random_pose(m, p.views, cam, rng);
     cv::Mat img = scenes::render_scene(m, T, cam, scenes::Scene::kPlain, 60u + static_cast<unsigned>(k));
-    const std::size_t n = projector.sample(T, cam, p.verify.sample_spacing_px, smp);
-    std::size_t best_a = 0, best_len = 0;
-    for (std::size_t a = 0; a < n;) {
-      std::size_t b = a + 1;
-      while (b < n && smp[b].piece == smp[a].piece) ++b;
-      if (b - a > best_len) best_len = b - a, best_a = a;
-      a = b;
-    }
+    const auto [best_a, best_len] = longest_piece(smp, projector.sample(T, cam, p.verify.sample_spacing_px, smp));
     if (best_len < 12) continue;
     for (std::size_t i = 3; i < best_len; i += 4) {
       const EdgeSample& s = smp[best_a + i];
