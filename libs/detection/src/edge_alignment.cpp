@@ -281,8 +281,10 @@ Verification EdgeAligner::verify(const GradientPyramid& g, const geometry::SE3& 
   v.box = sample_box(std::span<const EdgeSample>(samples_.data(), n));
   const int w = g.width(), h = g.height();
   const int steps = static_cast<int>(std::ceil(p_.match_distance_px * 2.0));
-  // A run: consecutive matches along one edge piece with one polarity (the same side brighter).
-  // A piece shorter than min_run samples counts when all of it matches with one polarity.
+  // A run: consecutive matches along one edge piece with one polarity (the same side brighter),
+  // going on over up to detect.verify.run_gap unmatched samples in a row when a match of its
+  // polarity follows (they do not count). A piece shorter than min_run samples counts when all
+  // of it matches with one polarity.
   int run = 0, run_sign = 0, piece_samples = 0;
   int gap = 0;  // unmatched samples bridged since the run's last match
   bool piece_broken = false;

@@ -23,7 +23,7 @@ struct Verification {
   double score = 0.0;
   int samples = 0;     ///< visible edge samples of the model at the pose
   int matched = 0;     ///< ... of which matched a gradient in position and orientation
-  int in_runs = 0;     ///< matched samples in runs of at least VerifyParams::min_run consecutive matches along an edge
+  int in_runs = 0;     ///< matched samples in runs of at least VerifyParams::min_run matches along an edge (gaps of up to run_gap bridged)
   double match_share = 0.0;  ///< matched / samples (score counts in_runs / samples)
   PixelBox box;              ///< image box of the visible edge samples (px)
   /// The colour test (EdgeAligner::measure_leak; -1 when not measured): the share of colour
