@@ -227,9 +227,12 @@ void EdgeAligner::mark_continued(const GradientPyramid& g, std::size_t n) {
   constexpr int kMinProbes = 3;
   const int w = g.width(), h = g.height();
   paint_own(n, 1);
-  // A gradient of the edge's orientation (either polarity) within 1.5 px of q along n.
+  // A gradient of the edge's orientation (either polarity) within match_distance of q along n,
+  // in half-pixel steps as verify looks for a sample's match.
+  const int steps = static_cast<int>(std::ceil(p_.match_distance_px * 2.0));
   const auto matches_at = [&](const Eigen::Vector2d& q, const Eigen::Vector2d& nn) {
-    for (int k = -3; k <= 3; ++k) {
+    for (int k = -steps; k <= steps; ++k) {
+      if (0.5 * std::abs(k) > p_.match_distance_px) continue;
       const int x = round_px(q.x() + 0.5 * k * nn.x()), y = round_px(q.y() + 0.5 * k * nn.y());
       if (x < 1 || y < 1 || x >= w - 1 || y >= h - 1) return false;
       const double gx = g.gx(x, y), gy = g.gy(x, y), m2 = gx * gx + gy * gy;

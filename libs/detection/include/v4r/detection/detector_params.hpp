@@ -103,8 +103,8 @@ struct VerifyParams {
   int run_gap = 1;
   /// An edge piece whose line the image continues beyond both its ends (an occluder's side, a
   /// line of the background that a wrong pose lies along) does not count: probes every 4 px out
-  /// to this times the piece's length (12..40 px) past each end, on neither the pose's own edges;
-  /// 0: off.
+  /// to this times the piece's length (12..40 px) past each end, none on the pose's own edges,
+  /// each matched by a gradient of the edge's orientation within match_distance_px; 0: off.
   double continued_reach = 0.5;
   double continued_share = 0.8;     ///< ... an end is continued when this share of its probes match a gradient
   double accept_score = 0.75;       ///< share of samples matched for a verified pose
