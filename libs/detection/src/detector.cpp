@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstring>
 
 #include "v4r/core/clock.hpp"
 #include "v4r/detection/symmetry.hpp"
@@ -30,8 +31,6 @@ Detector::Detector(std::shared_ptr<const model::Model> model, std::shared_ptr<co
       colour_ = std::make_unique<ColourRegions>(*model_, *templates_, cam_, *rgb, p_.colour);
       if (!colour_->usable()) colour_.reset();
     }
-  const OrientationLevel& c = pyramid_.coarse();
-  acc_.assign(static_cast<std::size_t>(c.lin_width) * c.lin_height, 0);
   coarse_.reserve(static_cast<std::size_t>(std::max(p_.search.coarse_candidates, p_.colour.coarse_candidates)) + 1);
   std::size_t max_children = 0;
   for (std::size_t k = 0; k + 1 < templates_->child_offsets.size(); ++k)
@@ -49,7 +48,29 @@ constexpr double kPolishScoreDrop = 0.02;  // a polished pose may score this muc
 constexpr int kTieMinSamples = 10;          // distinctive edge samples each pose of a near tie needs
 constexpr std::size_t kMaxConsensus = 32;   // members of a consensus cluster considered, at most
 constexpr std::size_t kMaxFineAnchors = (2 * kMaxFineWindow + 2) * (2 * kMaxFineWindow + 2);
+// Adjacent coarse anchors summed together (the linear maps are padded for a row's last tile).
+constexpr int kCoarseTile = 32;
+static_assert(kCoarseTile <= kLinearPadding);
+// 16 bytes added lane by lane (GCC's and Clang's vector extension: SSE2, NEON, or plain code).
+using Bytes16 = std::uint8_t __attribute__((vector_size(16)));
+inline Bytes16 load16(const std::uint8_t* p) {
+  Bytes16 v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
 GradientThreshold search_threshold(const SearchParams& s) { return {s.min_gradient, s.min_gradient_floor, s.noise_factor}; }
+
+/// Sums over features of 16 adjacent fine anchors in each of NY rows `w` apart: `base[f] + off`
+/// is feature f's response at the first of them. Written to `out`, rows `out_stride` apart. With
+/// NY known the sums stay in registers.
+template <int NY>
+void sum_rows(const std::uint8_t* const* base, std::uint32_t count, std::size_t off, std::size_t w, std::uint8_t* out,
+              int out_stride) {
+  Bytes16 a[NY] = {};
+  for (std::uint32_t f = 0; f < count; ++f)
+    for (int iy = 0; iy < NY; ++iy) a[iy] += load16(base[f] + off + iy * w);
+  for (int iy = 0; iy < NY; ++iy) std::memcpy(out + iy * out_stride, &a[iy], sizeof a[iy]);
+}
 }  // namespace
 
 bool Detector::set_image(const image::ColourView& bgr) { return pyramid_.compute(bgr, search_threshold(p_.search)); }
@@ -130,32 +151,49 @@ void Detector::scan_coarse(std::size_t k, int ilo, int jlo, int ihi, int jhi, in
   const std::size_t K = static_cast<std::size_t>(use_colour_ ? p_.colour.coarse_candidates : p_.search.coarse_candidates);
   const Template& t = ts.coarse.templates[k];
   const int aw = ihi - ilo + 1, ah = jhi - jlo + 1;
-  std::fill(acc_.begin(), acc_.begin() + static_cast<std::ptrdiff_t>(aw) * ah, 0);
-  for (std::uint32_t f = t.first; f < t.first + t.count; ++f) {
-    const Feature& ft = ts.coarse.features[f];
+  // Each feature's response at the anchor (ilo, jlo); anchor (ilo + i, jlo + j) is j * lw + i on.
+  std::array<const std::uint8_t*, 64> src;
+  const std::uint32_t count = std::min<std::uint32_t>(t.count, 64);
+  for (std::uint32_t q = 0; q < count; ++q) {
+    const Feature& ft = ts.coarse.features[t.first + q];
     const int px = ft.x & 1, py = ft.y & 1;
     const int dx = (ft.x - px) / 2, dy = (ft.y - py) / 2;
-    const std::uint8_t* lin = L.linear[ft.orientation][py * 2 + px].data();
-    for (int j = 0; j < ah; ++j) {
-      const std::uint8_t* src = lin + static_cast<std::size_t>(jlo + j + dy) * lw + (ilo + dx);
-      std::uint8_t* dst = acc_.data() + static_cast<std::size_t>(j) * aw;
-      for (int i = 0; i < aw; ++i) dst[i] = static_cast<std::uint8_t>(dst[i] + src[i]);
+    src[q] = L.linear[ft.orientation][py * 2 + px].data() + static_cast<std::size_t>(jlo + dy) * lw + (ilo + dx);
+  }
+  // Tiles of 32 adjacent anchors of a row, their sums in two vector registers through all the
+  // features (the maps are padded for a row's last tile, whose lanes past the row are not read),
+  // then the best anchor in row order (the first of equal sums).
+  int best = -1, bi = 0, bj = 0;
+  for (int j = 0; j < ah; ++j) {
+    const std::size_t row = static_cast<std::size_t>(j) * lw;
+    for (int i0 = 0; i0 < aw; i0 += kCoarseTile) {
+      const std::size_t off = row + static_cast<std::size_t>(i0);
+      Bytes16 a0{}, a1{};
+      for (std::uint32_t q = 0; q < count; ++q) {
+        a0 += load16(src[q] + off);
+        a1 += load16(src[q] + off + 16);
+      }
+      std::uint8_t a[kCoarseTile];
+      std::memcpy(a, &a0, 16);
+      std::memcpy(a + 16, &a1, 16);
+      // Lanes past the row count 0: never above an earlier lane of the row.
+      const int lanes = std::min(kCoarseTile, aw - i0);
+      std::fill(a + lanes, a + kCoarseTile, std::uint8_t{0});
+      std::uint8_t m = 0;
+      for (int l = 0; l < kCoarseTile; ++l) m = std::max(m, a[l]);
+      if (m <= best) continue;
+      best = m;
+      bi = i0 + static_cast<int>(std::find(a, a + kCoarseTile, m) - a);
+      bj = j;
     }
   }
-  // The best sum first (a loop the compiler vectorises), its first anchor only for a template
-  // that enters the candidates: most do not.
-  const int n = aw * ah;
-  std::uint8_t top = 0;
-  for (int i = 0; i < n; ++i) top = std::max(top, acc_[static_cast<std::size_t>(i)]);
-  const int best = top;
   const int min_score = static_cast<int>(std::ceil(p_.search.coarse_min_score * 4.0 * t.count));
   if (best < min_score) return;
   // Scores compared as shares of each template's best possible score (x1000).
   const int share = static_cast<int>(1000.0 * best / (4.0 * t.count));
   if (coarse_.size() >= K && share <= worst) return;
-  const int bi = static_cast<int>(std::find(acc_.begin(), acc_.begin() + n, top) - acc_.begin());
-  Candidate c{share, static_cast<std::uint32_t>(k), static_cast<std::int16_t>(2 * (ilo + bi % aw)),
-              static_cast<std::int16_t>(2 * (jlo + bi / aw))};
+  Candidate c{share, static_cast<std::uint32_t>(k), static_cast<std::int16_t>(2 * (ilo + bi)),
+              static_cast<std::int16_t>(2 * (jlo + bj))};
   if (coarse_.size() < K) {
     coarse_.push_back(c);
   } else {
@@ -199,23 +237,32 @@ int Detector::score_fine(std::uint32_t view, int cx, int cy, int& bx, int& by) c
   const int xlo = std::max(cx - r, -static_cast<int>(t.x0)), xhi = std::min(cx + 1 + r, w - 1 - t.x1);
   if (ylo > yhi || xlo > xhi) return -1;
   const int nx = xhi - xlo + 1, ny = yhi - ylo + 1;
-  // Feature by feature over the whole window, in blocks of kResponsePadding adjacent anchors (a
-  // loop the compiler vectorises; the response maps are padded for the last block), then the best
-  // anchor in row order (the first of equal sums). Sums fit a byte: at most 63 features of 4.
-  constexpr int kBlock = kResponsePadding;
-  const int blocks = (nx + kBlock - 1) / kBlock, stride = blocks * kBlock;
+  // Blocks of 16 adjacent anchors in up to 6 rows, their sums in registers through all the
+  // features (the response maps are padded for a row's last block), then the best anchor in row
+  // order (the first of equal sums). Sums fit a byte: at most 63 features of 4.
+  static_assert(kResponsePadding >= 16);
+  const int blocks = (nx + 15) / 16, stride = blocks * 16;
   std::array<std::uint8_t, kMaxFineAnchors * 2> acc;  // ny rows of `stride` sums
-  std::fill_n(acc.begin(), ny * stride, std::uint8_t{0});
-  for (std::uint32_t f = t.first; f < t.first + t.count; ++f) {
-    const Feature& ft = ts.fine.features[f];
-    const std::uint8_t* base = L.response[ft.orientation].data() + static_cast<std::size_t>(ylo + ft.y) * w + (xlo + ft.x);
-    for (int iy = 0; iy < ny; ++iy) {
-      const std::uint8_t* row = base + static_cast<std::size_t>(iy) * w;
-      std::uint8_t* a = acc.data() + iy * stride;
-      for (int b = 0; b < stride; b += kBlock)
-        for (int l = 0; l < kBlock; ++l) a[b + l] = static_cast<std::uint8_t>(a[b + l] + row[b + l]);
-    }
+  std::array<const std::uint8_t*, 64> base;            // each feature's response at anchor (xlo, ylo)
+  const std::uint32_t count = std::min<std::uint32_t>(t.count, 64);
+  for (std::uint32_t f = 0; f < count; ++f) {
+    const Feature& ft = ts.fine.features[t.first + f];
+    base[f] = L.response[ft.orientation].data() + static_cast<std::size_t>(ylo + ft.y) * w + (xlo + ft.x);
   }
+  const std::size_t sw = static_cast<std::size_t>(w);
+  for (int b = 0; b < blocks; ++b)
+    for (int r0 = 0; r0 < ny; r0 += 6) {
+      const std::size_t off = static_cast<std::size_t>(r0) * sw + static_cast<std::size_t>(16 * b);
+      std::uint8_t* out = acc.data() + r0 * stride + 16 * b;
+      switch (std::min(6, ny - r0)) {
+        case 1: sum_rows<1>(base.data(), count, off, sw, out, stride); break;
+        case 2: sum_rows<2>(base.data(), count, off, sw, out, stride); break;
+        case 3: sum_rows<3>(base.data(), count, off, sw, out, stride); break;
+        case 4: sum_rows<4>(base.data(), count, off, sw, out, stride); break;
+        case 5: sum_rows<5>(base.data(), count, off, sw, out, stride); break;
+        default: sum_rows<6>(base.data(), count, off, sw, out, stride); break;
+      }
+    }
   int best = -1;
   for (int iy = 0; iy < ny; ++iy)
     for (int ix = 0; ix < nx; ++ix)

@@ -89,7 +89,7 @@ void allocate(OrientationLevel& l, int w, int h, int spread, bool linear) {
   l.lin_height = (h + 1) / 2;
   if (linear)
     for (auto& o : l.linear)
-      for (auto& ph : o) ph.assign(static_cast<std::size_t>(l.lin_width) * l.lin_height, 0);
+      for (auto& ph : o) ph.assign(static_cast<std::size_t>(l.lin_width) * l.lin_height + kLinearPadding, 0);
 }
 
 /// lut[o][mask]: best similarity of orientation o to the orientations set in mask.

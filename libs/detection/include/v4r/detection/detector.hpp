@@ -187,7 +187,6 @@ class Detector {
   std::unique_ptr<ColourRegions> colour_;  // null: no colour stage
   bool use_colour_ = false;                // this frame's search is restricted to colour_'s regions
   image::ColourView frame_colour_;         // the colour frame being searched (detect(bgr) only), for the colour test
-  std::vector<std::uint8_t> acc_;         // coarse accumulator, lin_width x lin_height
   std::vector<Candidate> coarse_;         // top coarse candidates (size <= coarse_candidates)
   std::vector<Candidate> fine_;           // fine candidates
   std::vector<Candidate> picked_;         // distinct fine candidates

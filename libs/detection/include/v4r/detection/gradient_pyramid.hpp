@@ -24,6 +24,8 @@ int orientation_similarity(int a, int b);
 
 /// Zero bytes after each response map: block reads from a row's last pixels stay inside it.
 inline constexpr int kResponsePadding = 16;
+/// Zero bytes after each of the coarse level's linear maps, for the same reason.
+inline constexpr int kLinearPadding = 32;
 
 /// \brief One level of the orientation pyramid: quantised orientations, their spread over a
 /// square neighbourhood and the response map per orientation (uint8 per pixel, the best
@@ -38,7 +40,8 @@ struct OrientationLevel {
   /// kResponsePadding bytes from any pixel)
   std::array<std::vector<std::uint8_t>, kOrientations> response;
   /// Response maps split into the four 2x2 phases (stride-2 evaluation with contiguous rows):
-  /// Only at the coarse level: linear[o][py * 2 + px] has lin_width x lin_height pixels, entry (i, j) = response (2i+px, 2j+py).
+  /// Only at the coarse level: linear[o][py * 2 + px] has lin_width x lin_height pixels, entry (i, j) = response (2i+px, 2j+py),
+  /// then kLinearPadding zeros.
   std::array<std::array<std::vector<std::uint8_t>, 4>, kOrientations> linear;
   int lin_width = 0, lin_height = 0;
   double noise = 0.0;      ///< grey levels per level pixel: median of |gx| + |gy| over the computed box
