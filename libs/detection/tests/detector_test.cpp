@@ -5,12 +5,14 @@
 // README's detection section); these tests keep ctest short with a few images per condition.
 #include <array>
 #include <atomic>
+#include <cmath>
 #include <functional>
 #include <initializer_list>
 #include <cstdlib>
 #include <new>
 #include <optional>
 #include <tuple>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -276,6 +278,77 @@ TEST(Detector, AllocatesNothingPerFrameAndRejectsAWrongImageSize) {
   const cv::Mat small(100, 100, CV_8UC3, cv::Scalar::all(0));
   EXPECT_EQ(det.detect(io::as_colour_view(small), hyp).status, DetectionResult::Status::kBadImage);
   EXPECT_EQ(det.detect(image::ColourView{}, hyp).status, DetectionResult::Status::kBadImage);
+}
+
+TEST(Detector, TheTemplateSearchKeepsTheBestSumsAtTheirFirstBestAnchors) {
+  // The search sums responses in tiles of adjacent anchors from maps split by pixel phase; here
+  // every coarse template is summed at every anchor straight from the response maps. The coarse
+  // candidates must be the templates of the highest shares, each at the first anchor (row order)
+  // of its best sum; each picked fine candidate's score must be the sum at its anchor.
+  const Fixture f = make(synth::box_cao);
+  const TemplateSet& ts = *f.templates;
+  const SearchParams& sp = f.params.search;
+  Detector det(f.model, f.templates, f.cam, f.params);
+  std::array<Hypothesis, 16> hyp;
+  std::mt19937 rng(21);
+  std::vector<std::size_t> template_of_view(ts.views.size(), ts.coarse.templates.size());
+  for (std::size_t k = 0; k < ts.coarse_views.size(); ++k) template_of_view[ts.coarse_views[k]] = k;
+  const auto sum_at = [](const OrientationLevel& L, const TemplateLevel& level, const Template& t, int x, int y) {
+    int sum = 0;
+    for (std::uint32_t q = t.first; q < t.first + t.count; ++q) {
+      const Feature& ft = level.features[q];
+      sum += L.response[ft.orientation][static_cast<std::size_t>(y + ft.y) * L.width + (x + ft.x)];
+    }
+    return sum;
+  };
+  const auto share = [](int sum, const Template& t) { return static_cast<int>(1000.0 * sum / (4.0 * t.count)); };
+  for (const auto scene : {scenes::Scene::kClutter, scenes::Scene::kTextured}) {
+    const geometry::SE3 T = scenes::random_pose(*f.model, f.params.views, f.cam, rng);
+    const cv::Mat img = scenes::render_scene(*f.model, T, f.cam, scene, 7);
+    det.detect(io::as_colour_view(img), hyp);
+    const OrientationLevel& C = det.gradients().coarse();
+    // Every coarse template's best sum over the anchors (2i, 2j) that keep it inside the level.
+    struct Best {
+      int sum = -1, x = 0, y = 0;
+    };
+    std::vector<Best> best(ts.coarse.templates.size());
+    std::vector<std::size_t> eligible;
+    for (std::size_t k = 0; k < ts.coarse.templates.size(); ++k) {
+      const Template& t = ts.coarse.templates[k];
+      if (t.count < 4) continue;
+      for (int y = 0; y + t.y1 <= C.height - 1; y += 2) {
+        if (y + t.y0 < 0) continue;
+        for (int x = 0; x + t.x1 <= C.width - 1; x += 2)
+          if (x + t.x0 >= 0)
+            if (const int s = sum_at(C, ts.coarse, t, x, y); s > best[k].sum) best[k] = {s, x, y};
+      }
+      if (best[k].sum >= std::ceil(sp.coarse_min_score * 4.0 * t.count)) eligible.push_back(k);
+    }
+    const std::size_t n = det.candidate_count(false);
+    ASSERT_EQ(n, std::min(eligible.size(), static_cast<std::size_t>(sp.coarse_candidates)));
+    std::vector<bool> kept(ts.coarse.templates.size(), false);
+    int lowest = 1000;
+    for (std::size_t i = 0; i < n; ++i) {
+      const Detector::CandidateInfo c = det.candidate(false, i);
+      const std::size_t k = template_of_view[c.view];
+      ASSERT_LT(k, ts.coarse.templates.size());
+      kept[k] = true;
+      EXPECT_EQ(c.x, 2 * best[k].x) << "template " << k;  // candidates give 1/2-resolution pixels
+      EXPECT_EQ(c.y, 2 * best[k].y) << "template " << k;
+      lowest = std::min(lowest, share(best[k].sum, ts.coarse.templates[k]));
+    }
+    for (const std::size_t k : eligible) {
+      if (kept[k]) continue;
+      EXPECT_LE(share(best[k].sum, ts.coarse.templates[k]), lowest) << "template " << k << " left out";
+    }
+    const OrientationLevel& F = det.gradients().fine();
+    ASSERT_GT(det.candidate_count(true), 0U);
+    for (std::size_t i = 0; i < det.candidate_count(true); ++i) {
+      const Detector::CandidateInfo c = det.candidate(true, i);
+      const Template& t = ts.fine.templates[c.view];
+      EXPECT_EQ(c.score, share(sum_at(F, ts.fine, t, c.x, c.y), t)) << "picked " << i;
+    }
+  }
 }
 
 TEST(Detector, VerifiesTheTruthOnMotionBlurredImages) {
