@@ -161,8 +161,8 @@ void Detector::scan_coarse(std::size_t k, int ilo, int jlo, int ihi, int jhi, in
     src[q] = L.linear[ft.orientation][py * 2 + px].data() + static_cast<std::size_t>(jlo + dy) * lw + (ilo + dx);
   }
   // Tiles of 32 adjacent anchors of a row, their sums in two vector registers through all the
-  // features (the maps are padded for a row's last tile, whose lanes past the row are not read),
-  // then the best anchor in row order (the first of equal sums).
+  // features (the maps are padded for a row's last tile, whose lanes past the row are summed too
+  // and then set to 0), then the best anchor in row order (the first of equal sums).
   int best = -1, bi = 0, bj = 0;
   for (int j = 0; j < ah; ++j) {
     const std::size_t row = static_cast<std::size_t>(j) * lw;
@@ -244,7 +244,7 @@ int Detector::score_fine(std::uint32_t view, int cx, int cy, int& bx, int& by) c
   const int blocks = (nx + 15) / 16, stride = blocks * 16;
   std::array<std::uint8_t, kMaxFineAnchors * 2> acc;  // ny rows of `stride` sums
   std::array<const std::uint8_t*, 64> base;            // each feature's response at anchor (xlo, ylo)
-  const std::uint32_t count = std::min<std::uint32_t>(t.count, 64);
+  const std::uint32_t count = t.count;                 // 8 .. 63, tested above
   for (std::uint32_t f = 0; f < count; ++f) {
     const Feature& ft = ts.fine.features[t.first + f];
     base[f] = L.response[ft.orientation].data() + static_cast<std::size_t>(ylo + ft.y) * w + (xlo + ft.x);
