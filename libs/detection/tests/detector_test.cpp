@@ -796,6 +796,17 @@ void count_eval_renders(Fixture& f, scenes::Scene s, const std::function<void(De
   }
 }
 
+/// count_eval_renders over the box in scene `box_scene` and the ship section in `section_scene`
+/// (the whole view range, as bench/detection_eval).
+void count_box_and_section(scenes::Scene box_scene, scenes::Scene section_scene,
+                           const std::function<void(DetectorParams&, bool)>& set, std::array<int, 2>& ok,
+                           std::array<int, 2>& wrong) {
+  Fixture box = make(synth::box_cao, Views::kDefault);
+  count_eval_renders(box, box_scene, set, ok, wrong);
+  Fixture section = make(synth::ship_section_cao, Views::kDefault);
+  count_eval_renders(section, section_scene, set, ok, wrong);
+}
+
 }  // namespace
 
 TEST(Detector, AFaceSeenEdgeOnIsUnfolded) {
@@ -826,10 +837,7 @@ TEST(Detector, AnEdgeAlongAnOccludersSideDoesNotCount) {
   const auto continued = [](DetectorParams& p, bool on) {
     p.verify.continued_reach = on ? DetectorParams{}.verify.continued_reach : 0.0;
   };
-  Fixture box = make(synth::box_cao, Views::kDefault);
-  count_eval_renders(box, scenes::Scene::kOcclusion, continued, ok, wrong);
-  Fixture section = make(synth::ship_section_cao, Views::kDefault);
-  count_eval_renders(section, scenes::Scene::kClutter, continued, ok, wrong);
+  count_box_and_section(scenes::Scene::kOcclusion, scenes::Scene::kClutter, continued, ok, wrong);
   std::printf("without: %d found, %d wrong; with: %d found, %d wrong\n", ok[0], wrong[0], ok[1], wrong[1]);
   EXPECT_GT(ok[1], ok[0]);
   EXPECT_LE(wrong[1], wrong[0]);
@@ -845,10 +853,7 @@ TEST(Detector, ARunOfMatchesGoesOnOverASingleMiss) {
   // 66 and 3 with): more found, no more wrong.
   std::array<int, 2> ok{}, wrong{};
   const auto gap = [](DetectorParams& p, bool on) { p.verify.run_gap = on ? DetectorParams{}.verify.run_gap : 0; };
-  Fixture box = make(synth::box_cao, Views::kDefault);
-  count_eval_renders(box, scenes::Scene::kBlur, gap, ok, wrong);
-  Fixture section = make(synth::ship_section_cao, Views::kDefault);
-  count_eval_renders(section, scenes::Scene::kOcclusion, gap, ok, wrong);
+  count_box_and_section(scenes::Scene::kBlur, scenes::Scene::kOcclusion, gap, ok, wrong);
   std::printf("without: %d found, %d wrong; with: %d found, %d wrong\n", ok[0], wrong[0], ok[1], wrong[1]);
   EXPECT_GT(ok[1], ok[0]);
   EXPECT_LE(wrong[1], wrong[0]);
