@@ -60,7 +60,7 @@ inline Bytes16 load16(const std::uint8_t* p) {
 }
 GradientThreshold search_threshold(const SearchParams& s) { return {s.min_gradient, s.min_gradient_floor, s.noise_factor}; }
 
-/// Sums over features of 16 adjacent fine anchors in each of NY rows `w` apart: `base[f] + off`
+/// Sums over features of 16 adjacent anchors in each of NY rows `w` apart: `base[f] + off`
 /// is feature f's response at the first of them. Written to `out`, rows `out_stride` apart. With
 /// NY known the sums stay in registers.
 template <int NY>
@@ -167,15 +167,9 @@ void Detector::scan_coarse(std::size_t k, int ilo, int jlo, int ihi, int jhi, in
   for (int j = 0; j < ah; ++j) {
     const std::size_t row = static_cast<std::size_t>(j) * lw;
     for (int i0 = 0; i0 < aw; i0 += kCoarseTile) {
-      const std::size_t off = row + static_cast<std::size_t>(i0);
-      Bytes16 a0{}, a1{};
-      for (std::uint32_t q = 0; q < count; ++q) {
-        a0 += load16(src[q] + off);
-        a1 += load16(src[q] + off + 16);
-      }
+      // The tile's two halves as two "rows" 16 bytes apart.
       std::uint8_t a[kCoarseTile];
-      std::memcpy(a, &a0, 16);
-      std::memcpy(a + 16, &a1, 16);
+      sum_rows<kCoarseTile / 16>(src.data(), count, row + static_cast<std::size_t>(i0), 16, a, 16);
       // Lanes past the row count 0: never above an earlier lane of the row.
       const int lanes = std::min(kCoarseTile, aw - i0);
       std::fill(a + lanes, a + kCoarseTile, std::uint8_t{0});
