@@ -129,6 +129,23 @@ ParamRegistry make_registry(CycleParams& p) {
   r.add("status.leak_max_typical", &st.leak_max_typical, 0.0, 1.0, "",
         "the leak test is used for objects whose outline leaks at most this share while tracked");
   r.add("status.leak_min_samples", &st.leak_min_samples, 1, 100000, "", "colour samples the leak test needs");
+  // The per-sample measurement beside the line windows (issue 8).
+  auto& sm = p.samples;
+  r.add("samples.enabled", &sm.enabled,
+        "measure the pose also by edge samples searched along their normals from the prediction (moving-edge style); kept when the image confirms it better than the line solve's");
+  r.add("samples.always", &sm.always,
+        "every frame; else only when the line solve left a visible edge or circle unused (missed, rejected, side by side)");
+  r.add("samples.recent_frames", &sm.recent_frames, 0, 100000, "frames",
+        "without samples.always: a visible edge missed for longer than this leaves no doubt (0: however long)");
+  r.add("samples.range", &sm.range_px, 0.5, 32.0, "px", "search range and Tukey width along a sample's normal");
+  r.add("samples.iterations", &sm.iterations, 1, 100, "", "Gauss-Newton iterations at most, each searching again");
+  r.add("samples.converged", &sm.converged_px, 0.0, 10.0, "px", "the iterations stop when a step moves the model by less than this in the image");
+  r.add("samples.spacing", &sm.spacing_px, 1.0, 50.0, "px", "spacing of the edge samples along the projected edges");
+  r.add("samples.max_samples", &sm.max_samples, 16, 100000, "", "edge samples per view at most");
+  r.add("samples.same_px", &sm.same_px, 0.0, 100.0, "px",
+        "a per-sample pose that moves the model by less than this from the line solve's is not compared (it changes nothing)");
+  r.add("samples.margin", &sm.margin, 0.0, 1.0, "",
+        "its pose replaces the line solve's when its share of confirmed edge samples is higher by this");
   r.add("status.contrast_match_share", &st.contrast.match_share, 0.0, 1.0, "",
         "an outside colour sample leaks when this share of the inside samples is alike");
   r.add("status.sample_step", &st.evidence.step_px, 1.0, 100.0, "px", "spacing of the evidence samples along projected edges");

@@ -65,6 +65,27 @@ struct StatusParams {
   double leak_max_typical = 0.25;
 };
 
+/// \brief The per-sample measurement of a view's pose, beside the line windows (issue 8: "a
+/// per-sample search with a robust M-estimator beside the RANSAC line, as moving-edge trackers
+/// do"; pipeline::SampleRefiner). The visible model edges are sampled every `spacing_px`; each
+/// sample takes the strongest gradient aligned with its normal within `range_px` along it;
+/// Tukey-weighted Gauss-Newton iterations move the pose. It starts from the predicted pose, so a
+/// line window that took a texture edge beside the real one does not pull it. Where the line
+/// solve leaves doubt (a visible edge rejected or missed), the cycle keeps the samples' pose
+/// instead of the line solve's when the image confirms it better (edge evidence, by `margin`).
+struct SampleRefineParams {
+  bool enabled = true;
+  bool always = false;        ///< every frame; else only when the line solve left a visible edge unused
+  int recent_frames = 0;      ///< ... rejected, or missed for at most this many frames (0: however long)
+  double range_px = 3.0;      ///< search range and Tukey width along a sample's normal
+  int iterations = 10;        ///< Gauss-Newton iterations at most (each searches again)
+  double converged_px = 0.2;  ///< ... stopped when a step moves the model by less than this in the image
+  double spacing_px = 3.0;    ///< spacing of the edge samples along the projected edges
+  int max_samples = 300;      ///< edge samples per view at most
+  double same_px = 0.5;       ///< a pose within this of the line solve's (in the image) is not compared
+  double margin = 0.02;       ///< its pose is kept when its edge evidence exceeds the line solve's by this share
+};
+
 /// \brief Every parameter of the vision cycle, with defaults in code (units in the docs).
 struct CycleParams {
   features::LineTrackerParams track;    ///< window of features found in the last frame
@@ -131,6 +152,7 @@ struct CycleParams {
   BudgetParams budget;
   RecoveryParams recovery;
   StatusParams status;
+  SampleRefineParams samples;  ///< the per-sample measurement beside the line windows
   bool use_filter = true;               ///< predict with the EKF (constant velocity); else constant pose
   filter::PoseFilterParams filter;
   /// The reported pose is that of a second filter (Object::smoother) fed the same measurements,

@@ -1,0 +1,180 @@
+// v4r - robust model-based object tracking. MIT licence.
+#include "v4r/pipeline/sample_refinement.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace v4r::pipeline {
+
+namespace {
+
+constexpr int kMinSamples = 12;
+constexpr double kCosAligned = 0.92388;  // cos 22.5 deg: a gradient this close to the normal is aligned
+
+/// Sobel gradient at an inside pixel (x in 1..w-2, y in 1..h-2), 8x grey levels per pixel.
+inline void sobel(const image::ImageView& g, int x, int y, int& gx, int& gy) {
+  const std::uint8_t* r1 = g.data + static_cast<long>(y) * g.stride + x;
+  const std::uint8_t* r0 = r1 - g.stride;
+  const std::uint8_t* r2 = r1 + g.stride;
+  gx = (r0[1] + 2 * r1[1] + r2[1]) - (r0[-1] + 2 * r1[-1] + r2[-1]);
+  gy = (r2[-1] + 2 * r2[0] + r2[1]) - (r0[-1] + 2 * r0[0] + r0[1]);
+}
+
+/// Nearest pixel of a coordinate; below -0.5 it is 0 or less, which the callers reject anyway
+/// (truncation instead of floor: no library call per probe).
+inline int round_px(double v) { return static_cast<int>(v + 0.5); }
+
+}  // namespace
+
+void SampleRefiner::reserve() {
+  const std::size_t n = static_cast<std::size_t>(std::max(kMinSamples, p_.max_samples));
+  if (samples_.capacity() < n) samples_.reserve(n);
+}
+
+void SampleRefiner::take_samples(const model::Model& model, const scene::View& view, const geometry::PinholeCamera& K,
+                                 const geometry::SE3& T) {
+  samples_.clear();
+  // A merged pair's feature carries the pair's mid-line: its own model edge is sampled.
+  const auto ends = [&](const scene::LineFeature& f, Eigen::Vector3d& X1, Eigen::Vector3d& X2) {
+    X1 = f.X1;
+    X2 = f.X2;
+    if (!f.merged) return;
+    if (f.edge >= model.lines().size()) return;
+    const model::LineEdge& e = model.lines()[f.edge];
+    if (e.a >= model.junctions().size() || e.b >= model.junctions().size()) return;
+    X1 = model.junctions()[e.a].p;
+    X2 = model.junctions()[e.b].p;
+  };
+  const std::size_t cap = samples_.capacity();
+  // The projected length of what is sampled, for the spacing that keeps to max_samples.
+  double total = 0.0;
+  Eigen::Vector3d X1, X2;
+  for (const scene::LineFeature& f : view.lines) {
+    if (!f.visible) continue;
+    ends(f, X1, X2);
+    const Eigen::Vector3d A = T * X1, B = T * X2;
+    if (A.z() > 1e-3 && B.z() > 1e-3) total += (K.project(B) - K.project(A)).norm();
+  }
+  for (const scene::ArcFeature& a : view.arcs)
+    if (a.visible && !a.dropped) total += static_cast<double>(a.samples) * p_.spacing_px;
+  if (!(total > 0.0) || cap == 0) return;
+  const double spacing = std::max(p_.spacing_px, total / static_cast<double>(cap));
+  const auto add = [&](const Eigen::Vector3d& X, const Eigen::Vector2d& d) {
+    if (samples_.size() >= cap || !(d.norm() > 1e-9)) return;
+    samples_.push_back(Sample{X, Eigen::Vector2d(-d.y(), d.x()).normalized()});
+  };
+  for (const scene::LineFeature& f : view.lines) {
+    if (!f.visible) continue;
+    ends(f, X1, X2);
+    const Eigen::Vector3d A = T * X1, B = T * X2;
+    if (!(A.z() > 1e-3 && B.z() > 1e-3)) continue;
+    const double len = (K.project(B) - K.project(A)).norm();
+    if (!std::isfinite(len)) continue;
+    const int k = std::max(1, static_cast<int>(len / spacing));
+    for (int i = 0; i < k; ++i) {
+      const double s = (i + 0.5) / k, e = 0.25 / k;
+      // The direction from the projections either side (a straight edge bends under distortion).
+      const Eigen::Vector2d d = K.project(A + (s + e) * (B - A)) - K.project(A + (s - e) * (B - A));
+      add(X1 + s * (X2 - X1), d);
+    }
+  }
+  for (const scene::ArcFeature& a : view.arcs) {
+    if (!a.visible || a.dropped || a.samples < 2) continue;
+    for (int k = 0; k < a.samples; ++k) {
+      const auto at = [&](int i) { return a.X[static_cast<std::size_t>(std::clamp(i, 0, a.samples - 1))]; };
+      const Eigen::Vector3d P0 = T * at(k - 1), P1 = T * at(k + 1);
+      if (!(P0.z() > 1e-3 && P1.z() > 1e-3)) continue;
+      add(at(k), K.project(P1) - K.project(P0));
+    }
+  }
+}
+
+double SampleRefiner::search(const image::ImageView& g, const Eigen::Vector2d& px, const Eigen::Vector2d& n) const {
+  const int steps = static_cast<int>(p_.range_px);
+  double best = 0.0;
+  int best_k = 0;
+  bool found = false;
+  double v[3] = {0.0, 0.0, 0.0};  // |gradient . n| around the best offset, for the sub-pixel place
+  const auto along = [&](int k, double& dot, double& m2) {
+    const int x = round_px(px.x() + k * n.x()), y = round_px(px.y() + k * n.y());
+    if (x < 1 || y < 1 || x >= g.width - 1 || y >= g.height - 1) return false;
+    int gx, gy;
+    sobel(g, x, y, gx, gy);
+    m2 = static_cast<double>(gx) * gx + static_cast<double>(gy) * gy;
+    dot = std::abs(gx * n.x() + gy * n.y());
+    return true;
+  };
+  for (int k = -steps; k <= steps; ++k) {
+    double dot, m2;
+    if (!along(k, dot, m2) || m2 < min_sobel2_ || dot * dot < kCosAligned * kCosAligned * m2) continue;
+    // The strongest aligned gradient, nearer ones preferred a little.
+    const double s = dot * (1.0 - 0.5 * std::abs(k) / (steps + 1.0));
+    if (s > best) {
+      best = s;
+      best_k = k;
+      found = true;
+      v[1] = dot;
+    }
+  }
+  if (!found) return std::numeric_limits<double>::quiet_NaN();
+  double m2;
+  if (!along(best_k - 1, v[0], m2) || !along(best_k + 1, v[2], m2)) return best_k;
+  const double denom = v[0] - 2.0 * v[1] + v[2];
+  if (!(denom < -1e-9) || v[0] > v[1] || v[2] > v[1]) return best_k;
+  return best_k + std::clamp(0.5 * (v[0] - v[2]) / denom, -0.5, 0.5);
+}
+
+bool SampleRefiner::refine(const model::Model& model, const scene::View& view, const geometry::PinholeCamera& K, const image::ImageView& grey,
+                           double threshold, geometry::SE3& T_cam_obj) {
+  n_ = 0;
+  if (grey.empty() || !(p_.range_px >= 1.0)) return false;
+  take_samples(model, view, K, T_cam_obj);
+  n_ = samples_.size();
+  if (n_ < static_cast<std::size_t>(kMinSamples)) return false;
+  min_sobel2_ = 64.0 * threshold * threshold;  // Sobel is 8x the gradient
+  const double tukey = p_.range_px;
+  geometry::SE3 T = T_cam_obj;
+  bool moved = false;
+  for (int it = 0; it < p_.iterations; ++it) {
+    geometry::Matrix6d H = geometry::Matrix6d::Zero();
+    geometry::Vector6d b = geometry::Vector6d::Zero();
+    int used = 0;
+    for (const Sample& s : samples_) {
+      const Eigen::Vector3d Xc = T * s.X_obj;
+      const double z = Xc.z();
+      if (!(z > 1e-6)) continue;
+      const double t = search(grey, K.project(Xc), s.normal);
+      if (std::isnan(t)) continue;
+      const double u = t / tukey;
+      if (std::abs(u) >= 1.0) continue;
+      const double w = (1.0 - u * u) * (1.0 - u * u);
+      Eigen::Matrix<double, 2, 3> Jp;
+      Jp << K.fx / z, 0.0, -K.fx * Xc.x() / (z * z), 0.0, K.fy / z, -K.fy * Xc.y() / (z * z);
+      const Eigen::RowVector3d nJ = s.normal.transpose() * Jp;
+      geometry::Vector6d J;
+      J.head<3>() = nJ.transpose();
+      J.tail<3>() = (-(nJ * geometry::hat(Xc))).transpose();
+      // Residual: the projected sample minus the edge found along n.
+      H.noalias() += w * J * J.transpose();
+      b.noalias() -= w * t * J;
+      ++used;
+    }
+    if (used < kMinSamples) break;
+    H.diagonal() *= 1.0 + 1e-3;
+    H.diagonal().array() += 1e-9;
+    const geometry::Vector6d delta = H.ldlt().solve(-b);
+    if (!delta.allFinite()) break;
+    T = geometry::SE3::exp(delta) * T;
+    moved = true;
+    // Converged when the step moves the model by less than converged_px in the image (the
+    // search's pixel grid leaves a jitter of a tenth of a pixel or so).
+    const double z = std::max(std::abs(T.translation().z()), 1e-3);
+    if (K.focal() * (delta.tail<3>().norm() + delta.head<3>().norm() / z) < p_.converged_px) break;
+  }
+  if (!moved || !T.translation().allFinite()) return false;
+  T_cam_obj = T;
+  return true;
+}
+
+}  // namespace v4r::pipeline
