@@ -16,7 +16,8 @@ ObjectMeasurer::ObjectMeasurer(const CycleParams& params, Clock::time_point (*no
       junctions_(params),
       solver_(params),
       evidence_(params.status.evidence),
-      contrast_(params.status.contrast) {}
+      contrast_(params.status.contrast),
+      samples_(params.samples) {}
 
 void ObjectMeasurer::reserve(const scene::Scene& scene) {
   // Buffers for the largest object seen by every camera: observations of one solve come from all
@@ -44,11 +45,13 @@ void ObjectMeasurer::reserve(const scene::Scene& scene) {
   for (auto& e : edgels_)
     if (e.capacity() < per_camera) e.reserve(per_camera);
   lines_.reserve(static_cast<std::size_t>(std::max({p_.track.rows, p_.budget.reduced_rows, 64})));
+  samples_.reserve();
 }
 
 void ObjectMeasurer::begin_frame(const MeasureContext& cycle) {
   ctx_ = cycle;
   track_ms_ = solve_ms_ = 0.0;
+  samples_chosen_ = 0;
   for (auto& e : edgels_) e.clear();
 }
 
@@ -232,6 +235,69 @@ ObjectSolve ObjectMeasurer::measure_views(const scene::Scene& scene, scene::Obje
   return best;
 }
 
+void ObjectMeasurer::choose_sample_pose(const scene::Scene& scene, scene::Object& obj, std::size_t vi,
+                                        const geometry::SE3& T_predicted, std::span<const CameraImage> images) {
+  scene::View& view = obj.views[vi];
+  const scene::Camera& cam = scene.cameras()[view.camera];
+  const CameraImage& img = images[view.camera];
+  // Only where the line solve leaves doubt (samples.always: every frame): a visible edge or
+  // circle it did not use (not found, rejected, or side by side with another too close to split).
+  bool doubt = p_.samples.always;
+  // A feature missed for longer than samples.recent_frames is no new doubt (an edge the image
+  // never shows, hidden by a part the model lacks).
+  const int recent = p_.samples.recent_frames;
+  const auto unused = [&](const auto& f) {
+    return f.status == scene::FeatureStatus::kOutlier ||
+           (f.status != scene::FeatureStatus::kFound && (recent <= 0 || f.frames_missing <= recent));
+  };
+  for (const scene::LineFeature& f : view.lines) doubt = doubt || (f.visible && !f.ambiguous && unused(f));
+  for (const scene::ArcFeature& a : view.arcs) doubt = doubt || (a.visible && !a.dropped && unused(a));
+  if (!doubt) return;
+  // Gradients count from the lowest threshold the view's tracked edges needed (noise, texture).
+  double threshold = 0.0;
+  for (const scene::LineFeature& f : view.lines)
+    if (f.visible && f.measurement.found && f.measurement.threshold > 0.0f)
+      threshold = threshold > 0.0 ? std::min(threshold, static_cast<double>(f.measurement.threshold))
+                                  : static_cast<double>(f.measurement.threshold);
+  if (!(threshold > 0.0)) threshold = p_.track.min_gradient;
+  geometry::SE3 T = T_predicted;
+  const auto tb = now_();
+  const bool refined = samples_.refine(*obj.model, view, cam.intrinsics, img.grey, threshold, T);
+  solve_ms_ += ms_between(tb, now_());
+  if (!refined) return;
+  // The line solve's pose; a per-sample pose within samples.same_px of it changes nothing.
+  const geometry::SE3 T_lines = view.T_cam_obj;
+  double shift = 0.0;  // px: the largest move of a visible edge's end
+  for (const scene::LineFeature& f : view.lines) {
+    if (!f.visible) continue;
+    for (const Eigen::Vector3d& X : {f.X1, f.X2}) {
+      const Eigen::Vector3d a = T * X, b = T_lines * X;
+      if (a.z() > 1e-3 && b.z() > 1e-3) shift = std::max(shift, (cam.intrinsics.project(a) - cam.intrinsics.project(b)).norm());
+    }
+  }
+  if (!(shift >= p_.samples.same_px)) return;
+  const auto share = [](const scene::View& v) {
+    return v.evidence_samples > 0 ? static_cast<double>(v.evidence_matched) / v.evidence_samples : 0.0;
+  };
+  // Kept unless the image confirms the samples' pose better; its colour test only then.
+  const double lines_share = share(view);
+  const int samples = view.evidence_samples, matched = view.evidence_matched;
+  const int leak_samples = view.leak_samples, leak_matched = view.leak_matched;
+  view.T_cam_obj = T;
+  measure_view_evidence(evidence_, nullptr, view, cam, img);
+  if (share(view) > lines_share + p_.samples.margin) {
+    measure_view_evidence(evidence_, &contrast_, view, cam, img);
+    solves_[0].T_ref_obj = cam.T_ref_cam * T;
+    ++samples_chosen_;
+    return;
+  }
+  view.T_cam_obj = T_lines;
+  view.evidence_samples = samples;
+  view.evidence_matched = matched;
+  view.leak_samples = leak_samples;
+  view.leak_matched = leak_matched;
+}
+
 void ObjectMeasurer::measure(const scene::Scene& scene, scene::Object& obj, std::span<const CameraImage> images,
                                 ObjectReport& rep, double stamp_s) {
   for (scene::View& view : obj.views) {
@@ -239,6 +305,15 @@ void ObjectMeasurer::measure(const scene::Scene& scene, scene::Object& obj, std:
     for (const scene::LineFeature& f : view.lines) rep.features_visible += f.visible && !f.ambiguous && !f.dropped ? 1 : 0;
     for (const scene::ArcFeature& a : view.arcs) rep.features_visible += a.visible && !a.dropped ? 1 : 0;
   }
+  // The per-sample measurement starts from the predicted pose, for an object seen in one view.
+  std::size_t sole = obj.views.size();
+  for (std::size_t vi = 0; vi < obj.views.size(); ++vi) {
+    const std::size_t c = obj.views[vi].camera;
+    if (c >= images.size() || images[c].grey.empty()) continue;
+    sole = sole == obj.views.size() ? vi : obj.views.size() + 1;
+  }
+  const bool by_samples = p_.samples.enabled && sole < obj.views.size();
+  const geometry::SE3 T_predicted = by_samples ? obj.views[sole].T_cam_obj : geometry::SE3{};
   // One solve over every view (CycleParams::joint_solve), or one per view, fused.
   solves_.clear();
   if (p_.joint_solve) {
@@ -254,6 +329,7 @@ void ObjectMeasurer::measure(const scene::Scene& scene, scene::Object& obj, std:
     if (view.camera >= images.size() || images[view.camera].grey.empty()) continue;
     measure_view_evidence(evidence_, &contrast_, view, scene.cameras()[view.camera], images[view.camera]);
   }
+  if (by_samples && solves_.size() == 1 && solves_[0].updated) choose_sample_pose(scene, obj, sole, T_predicted, images);
   const auto tf = now_();
   update_object(obj, combine_solves(solves_), p_, rep, stamp_s);
   solve_ms_ += ms_between(tf, now_());

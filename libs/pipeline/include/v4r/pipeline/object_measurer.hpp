@@ -19,6 +19,7 @@
 #include "v4r/pipeline/measure_context.hpp"
 #include "v4r/pipeline/object_solver.hpp"
 #include "v4r/pipeline/observation_buffer.hpp"
+#include "v4r/pipeline/sample_refinement.hpp"
 #include "v4r/scene/scene.hpp"
 
 namespace v4r::pipeline {
@@ -54,6 +55,8 @@ class ObjectMeasurer {
   [[nodiscard]] const MeasureContext& context() const { return ctx_; }
   [[nodiscard]] double track_ms() const { return track_ms_; }
   [[nodiscard]] double solve_ms() const { return solve_ms_; }
+  /// Objects this frame whose pose is the per-sample measurement's (SampleRefiner).
+  [[nodiscard]] int samples_chosen() const { return samples_chosen_; }
   /// Edge pixels this unit measured in the frame, per camera.
   [[nodiscard]] const std::vector<Eigen::Vector2d>& edgels(std::size_t camera) const {
     static const std::vector<Eigen::Vector2d> kEmpty;
@@ -75,6 +78,11 @@ class ObjectMeasurer {
   ObjectSolve measure_views(const scene::Scene& scene, scene::Object& obj, std::span<const CameraImage> images,
                             std::size_t first, std::size_t last, ObjectReport& rep);
 
+  /// The per-sample measurement of the object's only view `vi`, from `T_predicted`: kept (in
+  /// solves_[0] and the view) when its edge evidence beats the line solve's by samples.margin.
+  void choose_sample_pose(const scene::Scene& scene, scene::Object& obj, std::size_t vi,
+                          const geometry::SE3& T_predicted, std::span<const CameraImage> images);
+
   CycleParams p_;
   Clock::time_point (*now_)();
   LineMeasurement lines_;
@@ -83,6 +91,8 @@ class ObjectMeasurer {
   ObjectSolver solver_;
   features::EdgeEvidence evidence_;
   features::SilhouetteContrast contrast_;
+  SampleRefiner samples_;
+  int samples_chosen_ = 0;
   MeasureContext ctx_;
   ObservationBuffer buffer_;
   std::vector<ObjectSolve> solves_;  // per solve of the object being measured
