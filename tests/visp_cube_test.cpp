@@ -83,7 +83,7 @@ TEST(VispCube, TracksTheRealCubeFromAPerturbedStartLikeViSP) {
   pipeline::SingleObjectTracker tracker(model, cube.camera);
   tracker.set_pose(T0_perturbed);
   std::vector<double> et_mm, er_deg;
-  int lost = 0, first_lost = -1, worst_t_frame = -1;
+  int lost = 0, first_lost = -1, worst_t_frame = -1, beyond = 0;
   double worst_t = -1.0;
   for (std::size_t k = 0; k < frames.size(); ++k) {
     const cv::Mat grey = cv::imread(frames[k].string(), cv::IMREAD_GRAYSCALE);
@@ -93,6 +93,7 @@ TEST(VispCube, TracksTheRealCubeFromAPerturbedStartLikeViSP) {
     const geometry::SE3& R = cube.reference[k].T_cam_obj;
     et_mm.push_back(1e3 * (r.T_cam_obj.translation() - R.translation()).norm());
     er_deg.push_back(rotation_deg(r.T_cam_obj.rotation(), R.rotation()));
+    if (et_mm.back() > 10.0 || er_deg.back() > 4.0) ++beyond;
     if (et_mm.back() > worst_t) {
       worst_t = et_mm.back();
       worst_t_frame = static_cast<int>(k);
@@ -105,20 +106,23 @@ TEST(VispCube, TracksTheRealCubeFromAPerturbedStartLikeViSP) {
   const double t_med = median(et_mm), t_max = *std::max_element(et_mm.begin(), et_mm.end());
   const double r_med = median(er_deg), r_max = *std::max_element(er_deg.begin(), er_deg.end());
   std::printf("[visp cube] vs ViSP over frames 1-217: translation median %.2f mm, max %.2f mm (frame %d); rotation "
-              "median %.2f deg, max %.2f deg; %d frames lost (first %d)\n",
-              t_med, t_max, worst_t_frame, r_med, r_max, lost, first_lost);
+              "median %.2f deg, max %.2f deg; %d frames beyond 10 mm / 4 deg; %d frames lost (first %d)\n",
+              t_med, t_max, worst_t_frame, r_med, r_max, beyond, lost, first_lost);
   RecordProperty("translation_median_mm", fmt::format("{:.3f}", t_med));
   RecordProperty("translation_max_mm", fmt::format("{:.3f}", t_max));
   RecordProperty("rotation_median_deg", fmt::format("{:.3f}", r_med));
   RecordProperty("rotation_max_deg", fmt::format("{:.3f}", r_max));
+  RecordProperty("frames_beyond_10mm_4deg", beyond);
   EXPECT_EQ(lost, 0) << "first lost at frame " << first_lost;
   EXPECT_LE(t_med, 3.0);
   EXPECT_LE(r_med, 1.5);
-  // Issue 8's target for the largest deviation is 10 mm / 4 degrees; v4r is not there yet (41 mm /
-  // 13.7 degrees near frame 188, where the cube turns and a side face is seen at a grazing angle).
-  // These bounds catch a regression (a lost or flipped pose is far beyond them), not the target.
-  EXPECT_LE(t_max, 50.0);
-  EXPECT_LE(r_max, 15.0);
+  // Issue 8's target for the largest deviation is 10 mm / 4 degrees; v4r is not there yet (25 mm
+  // / 9.3 degrees at frame 188, where ViSP's two trackers disagree or its edge trajectory jumps).
+  // With the line windows alone (samples.enabled=false): 23 frames beyond it, 26.8 mm / 12.6 deg
+  // at most; with the per-sample measurement beside them, 13-14 frames from eight perturbed starts.
+  EXPECT_LE(beyond, 16);
+  EXPECT_LE(t_max, 30.0);
+  EXPECT_LE(r_max, 11.0);
 }
 
 TEST(VispCube, EveryCaoModelOfVispImagesLoads) {
