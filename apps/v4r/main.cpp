@@ -181,7 +181,7 @@ int cmd_demo(const std::string& out) {
   return rc;
 }
 
-int cmd_bench(const RenderArgs& a, int repeat, double budget_ms) {
+int cmd_bench(const RenderArgs& a, int repeat, double budget_ms, const pipeline::CycleParams& base) {
   auto in = model_input(a);
   if (!in) {
     fmt::print(stderr, "v4r bench: error: {}\n", in.error().to_string());
@@ -200,7 +200,7 @@ int cmd_bench(const RenderArgs& a, int repeat, double budget_ms) {
   app::TrackSummary s;
   std::int64_t overruns = 0;
   for (int r = 0; r < repeat; ++r) {
-    pipeline::CycleParams params;
+    pipeline::CycleParams params = base;
     params.budget.cycle_ms = budget_ms;
     pipeline::SingleObjectTracker tracker(model, cam, params);
     tracker.set_pose(traj[0]);
@@ -418,6 +418,10 @@ int main(int argc, char** argv) {
     bench->add_option("--objects", bench_objects, "Copies of the model side by side: the cost against one object alone")
         ->check(CLI::Range(1, 4))
         ->capture_default_str();
+    std::string bench_config;
+    std::vector<std::string> bench_sets;
+    bench->add_option("--config", bench_config, "YAML file of tracker parameters (see `v4r config`)");
+    bench->add_option("--set", bench_sets, "Set one parameter: --set samples.enabled=false (repeatable)");
     int bench_threads = 1;
     bench->add_option("--threads", bench_threads,
                       "With --cameras/--objects: also run the cycle over all of them on this many threads (cycle.threads)")
@@ -561,9 +565,19 @@ int main(int argc, char** argv) {
     if (*render) return cmd_render(ra);
     if (*demo) return cmd_demo(demo_out);
     if (*bench) {
-      if (bench_cameras > 1 || bench_objects > 1)
+      pipeline::CycleParams bench_params;
+      if (auto c = configure(bench_params, bench_config, bench_sets); !c) {
+        fmt::print(stderr, "v4r bench: error: {}\n", c.error().to_string());
+        return 2;
+      }
+      if (bench_cameras > 1 || bench_objects > 1) {
+        if (!bench_config.empty() || !bench_sets.empty()) {
+          fmt::print(stderr, "v4r bench: error: --config and --set apply to the one-camera, one-object bench only\n");
+          return 2;
+        }
         return cmd_bench_scene(ba, repeat, bench_budget, bench_cameras, bench_objects, bench_threads);
-      return cmd_bench(ba, repeat, bench_budget);
+      }
+      return cmd_bench(ba, repeat, bench_budget, bench_params);
     }
     if (*inspect) {
       if (inspect_path.empty()) {
