@@ -251,7 +251,7 @@ void ObjectMeasurer::choose_sample_pose(const scene::Scene& scene, scene::Object
            (f.status != scene::FeatureStatus::kFound && (recent <= 0 || f.frames_missing <= recent));
   };
   for (const scene::LineFeature& f : view.lines) doubt = doubt || (f.visible && !f.ambiguous && unused(f));
-  for (const scene::ArcFeature& a : view.arcs) doubt = doubt || (a.visible && !a.dropped && unused(a));
+  for (const scene::ArcFeature& a : view.arcs) doubt = doubt || (p_.samples.arcs_doubt && a.visible && !a.dropped && unused(a));
   if (!doubt) return;
   // Gradients count from the lowest threshold the view's tracked edges needed (noise, texture).
   double threshold = 0.0;

@@ -76,6 +76,7 @@ struct StatusParams {
 struct SampleRefineParams {
   bool enabled = true;
   bool always = false;        ///< every frame; else only when the line solve left a visible edge unused
+  bool arcs_doubt = false;    ///< ... or circle (off: a blurred circle is often missed, and the samples do not hold it better)
   int recent_frames = 0;      ///< ... rejected, or missed for at most this many frames (0: however long)
   double range_px = 3.0;      ///< search range and Tukey width along a sample's normal
   int iterations = 10;        ///< Gauss-Newton iterations at most (each searches again)
