@@ -254,11 +254,7 @@ void ObjectMeasurer::choose_sample_pose(const scene::Scene& scene, scene::Object
   for (const scene::ArcFeature& a : view.arcs) doubt = doubt || (p_.samples.arcs_doubt && a.visible && !a.dropped && unused(a));
   if (!doubt) return;
   // Gradients count from the lowest threshold the view's tracked edges needed (noise, texture).
-  double threshold = 0.0;
-  for (const scene::LineFeature& f : view.lines)
-    if (f.visible && f.measurement.found && f.measurement.threshold > 0.0f)
-      threshold = threshold > 0.0 ? std::min(threshold, static_cast<double>(f.measurement.threshold))
-                                  : static_cast<double>(f.measurement.threshold);
+  double threshold = view_threshold(view);
   if (!(threshold > 0.0)) threshold = p_.track.min_gradient;
   geometry::SE3 T = T_predicted;
   const auto tb = now_();

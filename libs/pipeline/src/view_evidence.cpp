@@ -8,7 +8,13 @@ namespace v4r::pipeline {
 namespace {
 
 /// Gradient thresholds: a tracked edge's own (what its window needed against noise and texture),
-/// else the lowest of this view's tracked edges, else (0) the evidence test's floor.
+/// else the lowest of this view's tracked edges (view_threshold), else (0) the evidence test's floor.
+float line_threshold(const scene::LineFeature& f, float view_thr) {
+  return f.measurement.found && f.measurement.threshold > 0.0f ? f.measurement.threshold : view_thr;
+}
+
+}  // namespace
+
 float view_threshold(const scene::View& view) {
   float view_thr = 0.0f;
   for (const scene::LineFeature& f : view.lines)
@@ -16,12 +22,6 @@ float view_threshold(const scene::View& view) {
       view_thr = view_thr > 0.0f ? std::min(view_thr, f.measurement.threshold) : f.measurement.threshold;
   return view_thr;
 }
-
-float line_threshold(const scene::LineFeature& f, float view_thr) {
-  return f.measurement.found && f.measurement.threshold > 0.0f ? f.measurement.threshold : view_thr;
-}
-
-}  // namespace
 
 void measure_view_evidence(features::EdgeEvidence& evidence, features::SilhouetteContrast* contrast, scene::View& view,
                            const scene::Camera& cam, const CameraImage& img) {

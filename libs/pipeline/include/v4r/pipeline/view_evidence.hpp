@@ -18,6 +18,10 @@ namespace v4r::pipeline {
 /// circles are left out) that the image confirms, colours inside and outside: is the edge the
 /// object's outline or an edge on the object? Writes View::leak_samples and View::leak_matched
 /// (0 without). Allocates nothing.
+/// The lowest gradient threshold (grey levels per pixel) a visible, tracked edge of the view
+/// needed against noise and texture (LineMeasurement::threshold); 0 when none was tracked.
+float view_threshold(const scene::View& view);
+
 void measure_view_evidence(features::EdgeEvidence& evidence, features::SilhouetteContrast* contrast, scene::View& view,
                            const scene::Camera& cam, const CameraImage& img);
 
