@@ -51,7 +51,6 @@ void ObjectMeasurer::reserve(const scene::Scene& scene) {
 void ObjectMeasurer::begin_frame(const MeasureContext& cycle) {
   ctx_ = cycle;
   track_ms_ = solve_ms_ = 0.0;
-  samples_chosen_ = 0;
   for (auto& e : edgels_) e.clear();
 }
 
@@ -240,8 +239,9 @@ void ObjectMeasurer::choose_sample_pose(const scene::Scene& scene, scene::Object
   scene::View& view = obj.views[vi];
   const scene::Camera& cam = scene.cameras()[view.camera];
   const CameraImage& img = images[view.camera];
-  // Only where the line solve leaves doubt (samples.always: every frame): a visible edge or
-  // circle it did not use (not found, rejected, or side by side with another too close to split).
+  // Only where the line solve leaves doubt (samples.always: every frame): a visible edge it did
+  // not use (rejected, or not found; circles too with samples.arcs_doubt). Edges left out as side
+  // by side with another are no doubt: a face seen edge-on or a thin plate always has them.
   bool doubt = p_.samples.always;
   // A feature missed for longer than samples.recent_frames is no new doubt (an edge the image
   // never shows, hidden by a part the model lacks).
@@ -284,7 +284,6 @@ void ObjectMeasurer::choose_sample_pose(const scene::Scene& scene, scene::Object
   if (share(view) > lines_share + p_.samples.margin) {
     measure_view_evidence(evidence_, &contrast_, view, cam, img);
     solves_[0].T_ref_obj = cam.T_ref_cam * T;
-    ++samples_chosen_;
     return;
   }
   view.T_cam_obj = T_lines;

@@ -55,8 +55,6 @@ class ObjectMeasurer {
   [[nodiscard]] const MeasureContext& context() const { return ctx_; }
   [[nodiscard]] double track_ms() const { return track_ms_; }
   [[nodiscard]] double solve_ms() const { return solve_ms_; }
-  /// Objects this frame whose pose is the per-sample measurement's (SampleRefiner).
-  [[nodiscard]] int samples_chosen() const { return samples_chosen_; }
   /// Edge pixels this unit measured in the frame, per camera.
   [[nodiscard]] const std::vector<Eigen::Vector2d>& edgels(std::size_t camera) const {
     static const std::vector<Eigen::Vector2d> kEmpty;
@@ -92,7 +90,6 @@ class ObjectMeasurer {
   features::EdgeEvidence evidence_;
   features::SilhouetteContrast contrast_;
   SampleRefiner samples_;
-  int samples_chosen_ = 0;
   MeasureContext ctx_;
   ObservationBuffer buffer_;
   std::vector<ObjectSolve> solves_;  // per solve of the object being measured
