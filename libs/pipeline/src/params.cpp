@@ -134,7 +134,7 @@ ParamRegistry make_registry(CycleParams& p) {
   r.add("samples.enabled", &sm.enabled,
         "measure the pose also by edge samples searched along their normals from the prediction (moving-edge style); kept when the image confirms it better than the line solve's");
   r.add("samples.always", &sm.always,
-        "every frame; else only when the line solve left a visible edge or circle unused (missed, rejected, side by side)");
+        "every frame; else only when the line solve left a visible edge unused (missed or rejected; circles with samples.arcs_doubt)");
   r.add("samples.arcs_doubt", &sm.arcs_doubt, "without samples.always: a visible circle left unused is a doubt too");
   r.add("samples.recent_frames", &sm.recent_frames, 0, 100000, "frames",
         "without samples.always: a visible edge missed for longer than this leaves no doubt (0: however long)");
