@@ -6,6 +6,7 @@
 
 #include <Eigen/Cholesky>
 
+#include "v4r/geometry/se3_jacobians.hpp"
 #include "v4r/image/image_view.hpp"
 
 namespace v4r::detection {
@@ -176,12 +177,7 @@ bool EdgeAligner::align_step(const GradientPyramid& g, std::size_t n, double ran
     const Eigen::Vector3d Xc = T * s.p_obj;
     const double z = Xc.z();
     if (z <= 1e-6) continue;
-    Eigen::Matrix<double, 2, 3> Jp;
-    Jp << cam_.fx / z, 0.0, -cam_.fx * Xc.x() / (z * z), 0.0, cam_.fy / z, -cam_.fy * Xc.y() / (z * z);
-    const Eigen::RowVector3d nJ = s.normal.transpose() * Jp;
-    geometry::Vector6d J;
-    J.head<3>() = nJ.transpose();
-    J.tail<3>() = (-(nJ * geometry::hat(Xc))).transpose();
+    const geometry::Vector6d J = geometry::normal_motion_jacobian(Xc, s.normal, cam_.fx, cam_.fy);
     const double r = -t;  // residual: projected point minus the matched edge, along n
     double w = std::abs(r) <= huber ? 1.0 : huber / std::abs(r);
     if (tukey_px > 0.0) {

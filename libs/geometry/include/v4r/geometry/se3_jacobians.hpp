@@ -68,4 +68,17 @@ inline Matrix6d translation_rotation_covariance(const SE3& T, const Matrix6d& co
   return J * cov_left * J.transpose();
 }
 
+/// \brief How far a camera-frame point's pinhole projection (fx, fy; no distortion) moves along
+/// the unit image direction n under a left pose update (v, w), Xc' = exp((v, w)) Xc, to first
+/// order: the row d(n . project(Xc)) / d(v, w) = [nJ, Xc x nJ], with nJ = n' d(project)/d(Xc).
+/// The Jacobian of a point-to-edge distance measured along the edge's normal. Xc.z() > 0.
+inline Vector6d normal_motion_jacobian(const Eigen::Vector3d& Xc, const Eigen::Vector2d& n, double fx, double fy) {
+  const double iz = 1.0 / Xc.z();
+  const Eigen::Vector3d nJ(n.x() * fx * iz, n.y() * fy * iz, -(n.x() * fx * Xc.x() + n.y() * fy * Xc.y()) * iz * iz);
+  Vector6d J;
+  J.head<3>() = nJ;
+  J.tail<3>() = Xc.cross(nJ);
+  return J;
+}
+
 }  // namespace v4r::geometry
