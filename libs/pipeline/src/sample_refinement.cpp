@@ -5,6 +5,8 @@
 #include <cmath>
 #include <limits>
 
+#include "v4r/geometry/se3_jacobians.hpp"
+
 namespace v4r::pipeline {
 
 namespace {
@@ -91,43 +93,51 @@ void SampleRefiner::take_samples(const model::Model& model, const scene::View& v
 }
 
 double SampleRefiner::search(const image::ImageView& g, const Eigen::Vector2d& px, const Eigen::Vector2d& n) const {
-  const int steps = static_cast<int>(p_.range_px);
-  double best = 0.0;
-  int best_k = 0;
-  bool found = false;
-  double v[3] = {0.0, 0.0, 0.0};  // |gradient . n| around the best offset, for the sub-pixel place
-  const auto along = [&](int k, double& dot, double& m2) {
+  constexpr int kMaxSteps = 32;  // samples.range's bound
+  const int steps = std::min(static_cast<int>(p_.range_px), kMaxSteps);
+  // |gradient . n| at each offset (NaN outside the image), kept for the sub-pixel place.
+  double dots[2 * kMaxSteps + 3];
+  const auto along = [&](int k, double& m2) {
     const int x = round_px(px.x() + k * n.x()), y = round_px(px.y() + k * n.y());
-    if (x < 1 || y < 1 || x >= g.width - 1 || y >= g.height - 1) return false;
+    if (x < 1 || y < 1 || x >= g.width - 1 || y >= g.height - 1) return std::numeric_limits<double>::quiet_NaN();
     int gx, gy;
     sobel(g, x, y, gx, gy);
     m2 = static_cast<double>(gx) * gx + static_cast<double>(gy) * gy;
-    dot = std::abs(gx * n.x() + gy * n.y());
-    return true;
+    return std::abs(gx * n.x() + gy * n.y());
   };
+  double best = 0.0;
+  int best_k = 0;
+  bool found = false;
+  const double half_per_step = 0.5 / (steps + 1.0);
   for (int k = -steps; k <= steps; ++k) {
-    double dot, m2;
-    if (!along(k, dot, m2) || m2 < min_sobel2_ || dot * dot < kCosAligned * kCosAligned * m2) continue;
+    double m2 = 0.0;
+    const double dot = along(k, m2);
+    dots[k + steps + 1] = dot;
+    if (std::isnan(dot) || m2 < min_sobel2_ || dot * dot < kCosAligned * kCosAligned * m2) continue;
     // The strongest aligned gradient, nearer ones preferred a little.
-    const double s = dot * (1.0 - 0.5 * std::abs(k) / (steps + 1.0));
+    const double s = dot * (1.0 - half_per_step * std::abs(k));
     if (s > best) {
       best = s;
       best_k = k;
       found = true;
-      v[1] = dot;
     }
   }
   if (!found) return std::numeric_limits<double>::quiet_NaN();
-  double m2;
-  if (!along(best_k - 1, v[0], m2) || !along(best_k + 1, v[2], m2)) return best_k;
-  const double denom = v[0] - 2.0 * v[1] + v[2];
-  if (!(denom < -1e-9) || v[0] > v[1] || v[2] > v[1]) return best_k;
-  return best_k + std::clamp(0.5 * (v[0] - v[2]) / denom, -0.5, 0.5);
+  // The neighbours either side of the best offset: from the scan, or one probe beyond its ends.
+  double m2 = 0.0;
+  const double v0 = best_k > -steps ? dots[best_k + steps] : along(best_k - 1, m2);
+  const double v1 = dots[best_k + steps + 1];
+  const double v2 = best_k < steps ? dots[best_k + steps + 2] : along(best_k + 1, m2);
+  if (std::isnan(v0) || std::isnan(v2)) return best_k;
+  const double denom = v0 - 2.0 * v1 + v2;
+  if (!(denom < -1e-9) || v0 > v1 || v2 > v1) return best_k;
+  return best_k + std::clamp(0.5 * (v0 - v2) / denom, -0.5, 0.5);
 }
 
 bool SampleRefiner::refine(const model::Model& model, const scene::View& view, const geometry::PinholeCamera& K, const image::ImageView& grey,
                            double threshold, geometry::SE3& T_cam_obj) {
   n_ = 0;
+  iterations_ = 0;
   if (grey.empty() || !(p_.range_px >= 1.0)) return false;
   take_samples(model, view, K, T_cam_obj);
   n_ = samples_.size();
@@ -140,8 +150,10 @@ bool SampleRefiner::refine(const model::Model& model, const scene::View& view, c
     geometry::Matrix6d H = geometry::Matrix6d::Zero();
     geometry::Vector6d b = geometry::Vector6d::Zero();
     int used = 0;
+    const Eigen::Matrix3d R = T.rotation();  // a matrix per iteration, not a quaternion per sample
+    const Eigen::Vector3d t0 = T.translation();
     for (const Sample& s : samples_) {
-      const Eigen::Vector3d Xc = T * s.X_obj;
+      const Eigen::Vector3d Xc = R * s.X_obj + t0;
       const double z = Xc.z();
       if (!(z > 1e-6)) continue;
       const double t = search(grey, K.project(Xc), s.normal);
@@ -149,12 +161,7 @@ bool SampleRefiner::refine(const model::Model& model, const scene::View& view, c
       const double u = t / tukey;
       if (std::abs(u) >= 1.0) continue;
       const double w = (1.0 - u * u) * (1.0 - u * u);
-      Eigen::Matrix<double, 2, 3> Jp;
-      Jp << K.fx / z, 0.0, -K.fx * Xc.x() / (z * z), 0.0, K.fy / z, -K.fy * Xc.y() / (z * z);
-      const Eigen::RowVector3d nJ = s.normal.transpose() * Jp;
-      geometry::Vector6d J;
-      J.head<3>() = nJ.transpose();
-      J.tail<3>() = (-(nJ * geometry::hat(Xc))).transpose();
+      const geometry::Vector6d J = geometry::normal_motion_jacobian(Xc, s.normal, K.fx, K.fy);
       // Residual: the projected sample minus the edge found along n.
       H.noalias() += w * J * J.transpose();
       b.noalias() -= w * t * J;
@@ -167,6 +174,7 @@ bool SampleRefiner::refine(const model::Model& model, const scene::View& view, c
     if (!delta.allFinite()) break;
     T = geometry::SE3::exp(delta) * T;
     moved = true;
+    ++iterations_;
     // Converged when the step moves the model by less than converged_px in the image (the
     // search's pixel grid leaves a jitter of a tenth of a pixel or so).
     const double z = std::max(std::abs(T.translation().z()), 1e-3);

@@ -32,6 +32,8 @@ class SampleRefiner {
               geometry::SE3& T_cam_obj);
   /// Samples of the last refine().
   [[nodiscard]] std::size_t samples() const { return n_; }
+  /// Gauss-Newton steps taken by the last refine().
+  [[nodiscard]] int iterations() const { return iterations_; }
 
  private:
   struct Sample {
@@ -48,6 +50,7 @@ class SampleRefiner {
   SampleRefineParams p_;
   std::vector<Sample> samples_;
   std::size_t n_ = 0;
+  int iterations_ = 0;
   double min_sobel2_ = 0.0;
 };
 
