@@ -60,6 +60,9 @@ TEST(SampleRefiner, BringsAPoseTwoPixelsOffBackToTheRenderedBox) {
   EXPECT_GT(start_mm, 3.0);
   EXPECT_LT(end_mm, 1.0) << "from " << start_mm << " mm";
   EXPECT_LT(rotation_deg(T, s.truth), 0.1);
+  // It stops when the step has become small, well before the iteration limit.
+  EXPECT_GE(refiner.iterations(), 2);
+  EXPECT_LT(refiner.iterations(), p.iterations) << "did not converge";
 }
 
 TEST(SampleRefiner, OnAnImageWithoutEdgesThePoseStays) {
