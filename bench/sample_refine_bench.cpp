@@ -1,7 +1,9 @@
 // v4r - robust model-based object tracking. MIT licence.
 // The per-sample measurement (pipeline::SampleRefiner) alone, one frame, one core: what it adds
 // to a cycle where the line solve left an edge unused (Google Benchmark).
+#include <algorithm>
 #include <memory>
+#include <string>
 
 #include <benchmark/benchmark.h>
 #include <opencv2/imgproc.hpp>
