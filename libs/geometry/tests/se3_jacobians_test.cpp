@@ -10,11 +10,7 @@ namespace v4r::geometry {
 namespace {
 
 TEST(NormalMotionJacobian, MatchesTheProjectedMoveOfASmallLeftUpdate) {
-  PinholeCamera K;
-  K.fx = 600.0;
-  K.fy = 580.0;
-  K.cx = 320.0;
-  K.cy = 240.0;
+  const PinholeCamera K{640, 480, 600.0, 580.0, 320.0, 240.0};  // width height fx fy cx cy
   std::mt19937 g(7);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   for (int trial = 0; trial < 20; ++trial) {
