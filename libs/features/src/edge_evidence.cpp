@@ -20,33 +20,43 @@ bool EdgeEvidence::add_sample(const image::ImageView& img, const Eigen::Vector2d
   // Profile across the edge, smoothed along it (noise), and the difference along it at each
   // offset (orientation): v(o) = mean_t I(p + o n + t e), g_n(o) = (v(o+1) - v(o-1)) / 2,
   // g_e(o) = (I(p + o n + kAlong e) - I(p + o n - kAlong e)) / (2 kAlong).
-  std::array<float, 2 * kMaxSearch + 5> v{}, ge{}, gn{};
+  std::array<float, 2 * kMaxSearch + 5> v{}, ge{};
   const int span = reach;
-  for (int o = -span; o <= span; ++o) {
-    const Eigen::Vector2d q = p + static_cast<double>(o) * n;
-    float acc = 0.0f, first = 0.0f, last = 0.0f;
-    for (int t = -kAlong; t <= kAlong; ++t) {
-      const float val = img.sample(q.x() + t * e.x(), q.y() + t * e.y());
-      acc += val;
-      if (t == -kAlong) first = val;
-      if (t == kAlong) last = val;
+  // Bilinear samples without the clamp of ImageView::sample: the box checked above holds them.
+  const auto at = [&img](double x, double y) {
+    const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
+    const float ax = static_cast<float>(x - x0), ay = static_cast<float>(y - y0);
+    const std::uint8_t* r0 = img.data + static_cast<long>(y0) * img.stride + x0;
+    const std::uint8_t* r1 = r0 + img.stride;
+    const float top = r0[0] + ax * (static_cast<float>(r0[1]) - r0[0]);
+    const float bot = r1[0] + ax * (static_cast<float>(r1[1]) - r1[0]);
+    return top + ay * (bot - top);
+  };
+  // The profile is filled as far as the test below needs it: it stops at the first match.
+  int filled = -span;
+  const auto fill_to = [&](int last_o) {
+    for (; filled <= last_o; ++filled) {
+      const Eigen::Vector2d q = p + static_cast<double>(filled) * n;
+      const float first = at(q.x() - kAlong * e.x(), q.y() - kAlong * e.y());
+      const float last = at(q.x() + kAlong * e.x(), q.y() + kAlong * e.y());
+      float acc = first;
+      for (int t = -kAlong + 1; t < kAlong; ++t) acc += at(q.x() + t * e.x(), q.y() + t * e.y());
+      acc += last;
+      v[static_cast<std::size_t>(filled + span)] = acc / (2 * kAlong + 1);
+      ge[static_cast<std::size_t>(filled + span)] = (last - first) / (2 * kAlong);
     }
-    v[static_cast<std::size_t>(o + span)] = acc / (2 * kAlong + 1);
-    ge[static_cast<std::size_t>(o + span)] = (last - first) / (2 * kAlong);
-  }
+  };
+  const auto gn = [&v](std::size_t i) { return 0.5f * (v[i + 1] - v[i - 1]); };
   const float thr = std::max(threshold, p_.min_gradient);
   const float cos_max = static_cast<float>(std::cos(p_.max_angle_rad));
-  for (int o = -span + 1; o <= span - 1; ++o) {
-    const auto i = static_cast<std::size_t>(o + span);
-    gn[i] = 0.5f * (v[i + 1] - v[i - 1]);
-  }
   // A match is a local maximum of the gradient across (the edge's position, not the flank of a
   // blurred edge a few pixels away) within search_px, strong enough and oriented along the edge.
   for (int o = -span + 2; o <= span - 2; ++o) {
+    fill_to(o + 2);
     const auto i = static_cast<std::size_t>(o + span);
-    const float g = std::abs(gn[i]);
-    if (g < thr || g < std::abs(gn[i - 1]) || g < std::abs(gn[i + 1])) continue;
-    if (g >= cos_max * std::sqrt(gn[i] * gn[i] + ge[i] * ge[i])) {
+    const float gi = gn(i), g = std::abs(gi);
+    if (g < thr || g < std::abs(gn(i - 1)) || g < std::abs(gn(i + 1))) continue;
+    if (g >= cos_max * std::sqrt(gi * gi + ge[i] * ge[i])) {
       ++matched_;
       return true;
     }
