@@ -275,14 +275,14 @@ void ObjectMeasurer::choose_sample_pose(const scene::Scene& scene, scene::Object
   const auto share = [](const scene::View& v) {
     return v.evidence_samples > 0 ? static_cast<double>(v.evidence_matched) / v.evidence_samples : 0.0;
   };
-  // Kept unless the image confirms the samples' pose better; its colour test only then.
+  // Kept unless the image confirms the samples' pose better (its colour test is taken in the same
+  // pass, and dropped with the pose).
   const double lines_share = share(view);
   const int samples = view.evidence_samples, matched = view.evidence_matched;
   const int leak_samples = view.leak_samples, leak_matched = view.leak_matched;
   view.T_cam_obj = T;
-  measure_view_evidence(evidence_, nullptr, view, cam, img);
+  measure_view_evidence(evidence_, &contrast_, view, cam, img);
   if (share(view) > lines_share + p_.samples.margin) {
-    measure_view_evidence(evidence_, &contrast_, view, cam, img);
     solves_[0].T_ref_obj = cam.T_ref_cam * T;
     return;
   }
