@@ -2,6 +2,7 @@
 #include "v4r/pipeline/sample_refinement.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 
@@ -29,13 +30,12 @@ inline int round_px(double v) { return static_cast<int>(v + 0.5); }
 
 }  // namespace
 
-void SampleRefiner::reserve() {
-  const std::size_t n = static_cast<std::size_t>(std::max(kMinSamples, p_.max_samples));
+void SampleRefiner::reserve(std::size_t views) {
+  const std::size_t n = static_cast<std::size_t>(std::max(kMinSamples, p_.max_samples)) * std::clamp<std::size_t>(views, 1, kMaxViews);
   if (samples_.capacity() < n) samples_.reserve(n);
 }
 
-void SampleRefiner::take_samples(const model::Model& model, const scene::View& view, const geometry::PinholeCamera& K,
-                                 const geometry::SE3& T) {
+void SampleRefiner::take_samples(const model::Model& model, std::span<const SampleView> views, const geometry::SE3& T_cam_obj) {
   samples_.clear();
   // A merged pair's feature carries the pair's mid-line: its own model edge is sampled.
   const auto ends = [&](const scene::LineFeature& f, Eigen::Vector3d& X1, Eigen::Vector3d& X2) {
@@ -48,51 +48,58 @@ void SampleRefiner::take_samples(const model::Model& model, const scene::View& v
     X1 = model.junctions()[e.a].p;
     X2 = model.junctions()[e.b].p;
   };
-  const std::size_t cap = samples_.capacity();
-  // The projected length of what is sampled, for the spacing that keeps to max_samples.
-  double total = 0.0;
+  const std::size_t per_view = std::min(static_cast<std::size_t>(std::max(kMinSamples, p_.max_samples)),
+                                        samples_.capacity() / std::max<std::size_t>(1, views.size()));
   Eigen::Vector3d X1, X2;
-  for (const scene::LineFeature& f : view.lines) {
-    if (!f.visible) continue;
-    ends(f, X1, X2);
-    const Eigen::Vector3d A = T * X1, B = T * X2;
-    if (A.z() > 1e-3 && B.z() > 1e-3) total += (K.project(B) - K.project(A)).norm();
-  }
-  for (const scene::ArcFeature& a : view.arcs)
-    if (a.visible && !a.dropped) total += static_cast<double>(a.samples) * p_.spacing_px;
-  if (!(total > 0.0) || cap == 0) return;
-  const double spacing = std::max(p_.spacing_px, total / static_cast<double>(cap));
-  const auto add = [&](const Eigen::Vector3d& X, const Eigen::Vector2d& d) {
-    if (samples_.size() >= cap || !(d.norm() > 1e-9)) return;
-    samples_.push_back(Sample{X, Eigen::Vector2d(-d.y(), d.x()).normalized()});
-  };
-  for (const scene::LineFeature& f : view.lines) {
-    if (!f.visible) continue;
-    ends(f, X1, X2);
-    const Eigen::Vector3d A = T * X1, B = T * X2;
-    if (!(A.z() > 1e-3 && B.z() > 1e-3)) continue;
-    const double len = (K.project(B) - K.project(A)).norm();
-    if (!std::isfinite(len)) continue;
-    const int k = std::max(1, static_cast<int>(len / spacing));
-    for (int i = 0; i < k; ++i) {
-      const double s = (i + 0.5) / k, e = 0.25 / k;
-      // The direction from the projections either side (a straight edge bends under distortion).
-      const Eigen::Vector2d d = K.project(A + (s + e) * (B - A)) - K.project(A + (s - e) * (B - A));
-      add(X1 + s * (X2 - X1), d);
+  for (std::size_t vi = 0; vi < views.size(); ++vi) {
+    const scene::View& view = *views[vi].view;
+    const geometry::PinholeCamera& K = *views[vi].K;
+    const geometry::SE3 T = views[vi].T_cam_first * T_cam_obj;
+    const std::size_t cap = samples_.size() + per_view;
+    // The projected length of what is sampled, for the spacing that keeps to max_samples.
+    double total = 0.0;
+    for (const scene::LineFeature& f : view.lines) {
+      if (!f.visible) continue;
+      ends(f, X1, X2);
+      const Eigen::Vector3d A = T * X1, B = T * X2;
+      if (A.z() > 1e-3 && B.z() > 1e-3) total += (K.project(B) - K.project(A)).norm();
     }
-  }
-  for (const scene::ArcFeature& a : view.arcs) {
-    if (!a.visible || a.dropped || a.samples < 2) continue;
-    for (int k = 0; k < a.samples; ++k) {
-      const auto at = [&](int i) { return a.X[static_cast<std::size_t>(std::clamp(i, 0, a.samples - 1))]; };
-      const Eigen::Vector3d P0 = T * at(k - 1), P1 = T * at(k + 1);
-      if (!(P0.z() > 1e-3 && P1.z() > 1e-3)) continue;
-      add(at(k), K.project(P1) - K.project(P0));
+    for (const scene::ArcFeature& a : view.arcs)
+      if (a.visible && !a.dropped) total += static_cast<double>(a.samples) * p_.spacing_px;
+    if (!(total > 0.0) || per_view == 0) continue;
+    const double spacing = std::max(p_.spacing_px, total / static_cast<double>(per_view));
+    const auto add = [&](const Eigen::Vector3d& X, const Eigen::Vector2d& d) {
+      if (samples_.size() >= cap || !(d.norm() > 1e-9)) return;
+      samples_.push_back(Sample{X, Eigen::Vector2d(-d.y(), d.x()).normalized(), vi});
+    };
+    for (const scene::LineFeature& f : view.lines) {
+      if (!f.visible) continue;
+      ends(f, X1, X2);
+      const Eigen::Vector3d A = T * X1, B = T * X2;
+      if (!(A.z() > 1e-3 && B.z() > 1e-3)) continue;
+      const double len = (K.project(B) - K.project(A)).norm();
+      if (!std::isfinite(len)) continue;
+      const int k = std::max(1, static_cast<int>(len / spacing));
+      for (int i = 0; i < k; ++i) {
+        const double s = (i + 0.5) / k, e = 0.25 / k;
+        // The direction from the projections either side (a straight edge bends under distortion).
+        const Eigen::Vector2d d = K.project(A + (s + e) * (B - A)) - K.project(A + (s - e) * (B - A));
+        add(X1 + s * (X2 - X1), d);
+      }
+    }
+    for (const scene::ArcFeature& a : view.arcs) {
+      if (!a.visible || a.dropped || a.samples < 2) continue;
+      for (int k = 0; k < a.samples; ++k) {
+        const auto at = [&](int i) { return a.X[static_cast<std::size_t>(std::clamp(i, 0, a.samples - 1))]; };
+        const Eigen::Vector3d P0 = T * at(k - 1), P1 = T * at(k + 1);
+        if (!(P0.z() > 1e-3 && P1.z() > 1e-3)) continue;
+        add(at(k), K.project(P1) - K.project(P0));
+      }
     }
   }
 }
 
-double SampleRefiner::search(const image::ImageView& g, const Eigen::Vector2d& px, const Eigen::Vector2d& n) const {
+double SampleRefiner::search(const image::ImageView& g, const Eigen::Vector2d& px, const Eigen::Vector2d& n, double min_sobel2) const {
   constexpr int kMaxSteps = 32;  // samples.range's bound
   const int steps = std::min(static_cast<int>(p_.range_px), kMaxSteps);
   // |gradient . n| at each offset (NaN outside the image), kept for the sub-pixel place.
@@ -113,7 +120,7 @@ double SampleRefiner::search(const image::ImageView& g, const Eigen::Vector2d& p
     double m2 = 0.0;
     const double dot = along(k, m2);
     dots[k + steps + 1] = dot;
-    if (std::isnan(dot) || m2 < min_sobel2_ || dot * dot < kCosAligned * kCosAligned * m2) continue;
+    if (std::isnan(dot) || m2 < min_sobel2 || dot * dot < kCosAligned * kCosAligned * m2) continue;
     // The strongest aligned gradient, nearer ones preferred a little.
     const double s = dot * (1.0 - half_per_step * std::abs(k));
     if (s > best) {
@@ -136,13 +143,32 @@ double SampleRefiner::search(const image::ImageView& g, const Eigen::Vector2d& p
 
 bool SampleRefiner::refine(const model::Model& model, const scene::View& view, const geometry::PinholeCamera& K, const image::ImageView& grey,
                            double threshold, geometry::SE3& T_cam_obj) {
+  const SampleView one{&view, &K, grey, threshold, geometry::SE3{}};
+  return refine(model, std::span<const SampleView>(&one, 1), T_cam_obj);
+}
+
+bool SampleRefiner::refine(const model::Model& model, std::span<const SampleView> views, geometry::SE3& T_cam_obj) {
   n_ = 0;
   iterations_ = 0;
-  if (grey.empty() || !(p_.range_px >= 1.0)) return false;
-  take_samples(model, view, K, T_cam_obj);
+  views = views.first(std::min(views.size(), kMaxViews));
+  if (views.empty() || !(p_.range_px >= 1.0)) return false;
+  for (const SampleView& v : views)
+    if (v.view == nullptr || v.K == nullptr || v.grey.empty()) return false;
+  take_samples(model, views, T_cam_obj);
   n_ = samples_.size();
   if (n_ < static_cast<std::size_t>(kMinSamples)) return false;
-  min_sobel2_ = 64.0 * threshold * threshold;  // Sobel is 8x the gradient
+  // Per view: the squared Sobel threshold (Sobel is 8x the gradient), and the pose in its camera
+  // once per iteration (a matrix, not a quaternion per sample).
+  std::array<double, kMaxViews> min_sobel2{};
+  std::array<Eigen::Matrix3d, kMaxViews> R;
+  std::array<Eigen::Vector3d, kMaxViews> t;
+  std::array<Eigen::Matrix3d, kMaxViews> Rf;  // T_cam_first's rotation and translation
+  std::array<Eigen::Vector3d, kMaxViews> tf;
+  for (std::size_t vi = 0; vi < views.size(); ++vi) {
+    min_sobel2[vi] = 64.0 * views[vi].threshold * views[vi].threshold;
+    Rf[vi] = views[vi].T_cam_first.rotation();
+    tf[vi] = views[vi].T_cam_first.translation();
+  }
   const double tukey = p_.range_px;
   geometry::SE3 T = T_cam_obj;
   bool moved = false;
@@ -150,21 +176,33 @@ bool SampleRefiner::refine(const model::Model& model, const scene::View& view, c
     geometry::Matrix6d H = geometry::Matrix6d::Zero();
     geometry::Vector6d b = geometry::Vector6d::Zero();
     int used = 0;
-    const Eigen::Matrix3d R = T.rotation();  // a matrix per iteration, not a quaternion per sample
-    const Eigen::Vector3d t0 = T.translation();
+    for (std::size_t vi = 0; vi < views.size(); ++vi) {
+      const geometry::SE3 Tv = vi == 0 ? T : views[vi].T_cam_first * T;
+      R[vi] = Tv.rotation();
+      t[vi] = Tv.translation();
+    }
     for (const Sample& s : samples_) {
-      const Eigen::Vector3d Xc = R * s.X_obj + t0;
+      const std::size_t vi = s.view;
+      const Eigen::Vector3d Xc = R[vi] * s.X_obj + t[vi];
       const double z = Xc.z();
       if (!(z > 1e-6)) continue;
-      const double t = search(grey, K.project(Xc), s.normal);
-      if (std::isnan(t)) continue;
-      const double u = t / tukey;
+      const geometry::PinholeCamera& K = *views[vi].K;
+      const double r = search(views[vi].grey, K.project(Xc), s.normal, min_sobel2[vi]);
+      if (std::isnan(r)) continue;
+      const double u = r / tukey;
       if (std::abs(u) >= 1.0) continue;
       const double w = (1.0 - u * u) * (1.0 - u * u);
-      const geometry::Vector6d J = geometry::normal_motion_jacobian(Xc, s.normal, K.fx, K.fy);
+      geometry::Vector6d J = geometry::normal_motion_jacobian(Xc, s.normal, K.fx, K.fy);
+      if (vi != 0) {
+        // A left update of the first camera's pose seen from this camera (the adjoint's transpose):
+        // dv = R' Jv, dw = R' (Jw - t x Jv) with T_cam_first = (R, t).
+        const Eigen::Vector3d Jv = J.head<3>(), Jw = J.tail<3>();
+        J.head<3>() = Rf[vi].transpose() * Jv;
+        J.tail<3>() = Rf[vi].transpose() * (Jw - tf[vi].cross(Jv));
+      }
       // Residual: the projected sample minus the edge found along n.
       H.noalias() += w * J * J.transpose();
-      b.noalias() -= w * t * J;
+      b.noalias() -= w * r * J;
       ++used;
     }
     if (used < kMinSamples) break;
@@ -175,10 +213,20 @@ bool SampleRefiner::refine(const model::Model& model, const scene::View& view, c
     T = geometry::SE3::exp(delta) * T;
     moved = true;
     ++iterations_;
-    // Converged when the step moves the model by less than converged_px in the image (the
-    // search's pixel grid leaves a jitter of a tenth of a pixel or so).
-    const double z = std::max(std::abs(T.translation().z()), 1e-3);
-    if (K.focal() * (delta.tail<3>().norm() + delta.head<3>().norm() / z) < p_.converged_px) break;
+    // Converged when the step moves the model by less than converged_px in every view's image
+    // (the search's pixel grid leaves a jitter of a tenth of a pixel or so).
+    double move_px = 0.0;
+    for (std::size_t vi = 0; vi < views.size(); ++vi) {
+      const geometry::SE3 Tv = vi == 0 ? T : views[vi].T_cam_first * T;
+      Eigen::Vector3d v = delta.head<3>(), w = delta.tail<3>();
+      if (vi != 0) {  // the step in this camera's frame (the adjoint)
+        w = Rf[vi] * delta.tail<3>();
+        v = Rf[vi] * delta.head<3>() + tf[vi].cross(w);
+      }
+      const double z = std::max(std::abs(Tv.translation().z()), 1e-3);
+      move_px = std::max(move_px, views[vi].K->focal() * (w.norm() + v.norm() / z));
+    }
+    if (move_px < p_.converged_px) break;
   }
   if (!moved || !T.translation().allFinite()) return false;
   T_cam_obj = T;

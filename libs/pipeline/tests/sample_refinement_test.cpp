@@ -21,14 +21,17 @@ struct BoxView {
   scene::View view;
   geometry::SE3 truth;
   cv::Mat grey;
-  explicit BoxView(const geometry::SE3& start_offset) {
+  /// The box at look_at(0.55, -0.6, 0.75) in the reference frame, the start pose offset from it
+  /// by `start_offset` (on the left), seen by a camera at T_ref_cam.
+  explicit BoxView(const geometry::SE3& start_offset, const geometry::SE3& T_ref_cam = geometry::SE3{}) {
     auto m = model::parse_cao(synth::box_cao(), "box");
     EXPECT_TRUE(m.has_value());
     obj.model = std::make_shared<const model::Model>(std::move(*m));
     cam.intrinsics = synth::default_camera();
+    cam.T_ref_cam = T_ref_cam;
     truth = geometry::look_at(0.55, -0.6, 0.75);
     synth::Renderer r(cam.intrinsics, synth::RenderOptions{});
-    cv::cvtColor(r.render(*obj.model, truth, 0), grey, cv::COLOR_BGR2GRAY);
+    cv::cvtColor(r.render(*obj.model, T_ref_cam.inverse() * truth, 0), grey, cv::COLOR_BGR2GRAY);
     // The view predicted at the start pose, as the cycle predicts it.
     view.lines.resize(obj.model->lines().size());
     for (std::size_t i = 0; i < view.lines.size(); ++i) view.lines[i].edge = static_cast<model::Index>(i);
@@ -63,6 +66,69 @@ TEST(SampleRefiner, BringsAPoseTwoPixelsOffBackToTheRenderedBox) {
   // It stops when the step has become small, well before the iteration limit.
   EXPECT_GE(refiner.iterations(), 2);
   EXPECT_LT(refiner.iterations(), p.iterations) << "did not converge";
+}
+
+/// A second camera 12 cm to the right, toed in 5 degrees.
+geometry::SE3 right_camera() {
+  return geometry::SE3(Eigen::Quaterniond(Eigen::AngleAxisd(-5.0 * M_PI / 180.0, Eigen::Vector3d::UnitY())), Eigen::Vector3d(0.12, 0.0, 0.0));
+}
+
+TEST(SampleRefiner, TwoViewsMoveOnePose) {
+  // 2 cm along the first camera's axis and 0.5 degrees: the first view sees the box a little
+  // smaller, the second (toed in, 12 cm away) also sees it sideways.
+  geometry::Vector6d xi;
+  xi << 0.002, 0.0, 0.02, 0.0, 0.009, 0.0;
+  const BoxView a(geometry::SE3::exp(xi)), b(geometry::SE3::exp(xi), right_camera());
+  const geometry::SE3 T_b_a = b.cam.T_ref_cam.inverse() * a.cam.T_ref_cam;
+  const SampleView views[] = {{&a.view, &a.cam.intrinsics, a.image(), 3.0, geometry::SE3{}},
+                              {&b.view, &b.cam.intrinsics, b.image(), 3.0, T_b_a}};
+  SampleRefineParams p;
+  p.iterations = 30;
+  SampleRefiner refiner(p);
+  refiner.reserve(2);
+  geometry::SE3 T = a.view.T_cam_obj;  // the object in the first camera
+  const double start_mm = 1e3 * (T.translation() - a.truth.translation()).norm();
+  ASSERT_TRUE(refiner.refine(*a.obj.model, views, T));
+  EXPECT_GT(refiner.samples(), 400u) << "both views sampled";
+  const double end_mm = 1e3 * (T.translation() - a.truth.translation()).norm();
+  EXPECT_GT(start_mm, 15.0);
+  EXPECT_LT(end_mm, 1.0) << "from " << start_mm << " mm";
+  EXPECT_LT(rotation_deg(T, a.truth), 0.1);
+  EXPECT_LT(refiner.iterations(), p.iterations) << "did not converge";
+}
+
+/// A camera swung 60 degrees about the vertical through the box (camera A's y axis): the box seen
+/// from another side at the same distance.
+geometry::SE3 swung_camera() {
+  const Eigen::Vector3d c = geometry::look_at(0.55, -0.6, 0.75).translation();
+  const geometry::SE3 swing(Eigen::Quaterniond(Eigen::AngleAxisd(60.0 * M_PI / 180.0, Eigen::Vector3d::UnitY())), Eigen::Vector3d::Zero());
+  return geometry::SE3(Eigen::Quaterniond::Identity(), c) * swing * geometry::SE3(Eigen::Quaterniond::Identity(), -c);
+}
+
+TEST(SampleRefiner, ASecondViewAloneMovesTheFirstCamerasPose) {
+  // The first camera's image is blank: only the second view's samples find edges, and their
+  // Jacobians must be carried into the first camera's frame (60 degrees turned) for the pose to
+  // come back.
+  geometry::Vector6d xi;
+  xi << 0.003, -0.002, 0.0, 0.0, 0.0, 0.007;
+  BoxView a(geometry::SE3::exp(xi));
+  const BoxView b(geometry::SE3::exp(xi), swung_camera());
+  a.grey.setTo(128);
+  const geometry::SE3 T_b_a = b.cam.T_ref_cam.inverse() * a.cam.T_ref_cam;
+  const SampleView views[] = {{&a.view, &a.cam.intrinsics, a.image(), 3.0, geometry::SE3{}},
+                              {&b.view, &b.cam.intrinsics, b.image(), 3.0, T_b_a}};
+  SampleRefineParams p;
+  p.iterations = 30;
+  SampleRefiner refiner(p);
+  refiner.reserve(2);
+  geometry::SE3 T = a.view.T_cam_obj;
+  const double start_mm = 1e3 * (T.translation() - a.truth.translation()).norm();
+  ASSERT_TRUE(refiner.refine(*a.obj.model, views, T));
+  const double end_mm = 1e3 * (T.translation() - a.truth.translation()).norm();
+  EXPECT_GT(start_mm, 3.0);
+  EXPECT_LT(end_mm, 1.0) << "from " << start_mm << " mm";
+  // As close as this view alone brings its own camera's pose (0.24 deg, refined by itself).
+  EXPECT_LT(rotation_deg(T, a.truth), 0.5);
 }
 
 TEST(SampleRefiner, OnAnImageWithoutEdgesThePoseStays) {
