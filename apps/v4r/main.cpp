@@ -233,7 +233,8 @@ int cmd_bench(const RenderArgs& a, int repeat, double budget_ms, const pipeline:
 }
 
 /// `v4r bench --cameras N --objects M`: the cost of a scene against one camera and one object.
-int cmd_bench_scene(const RenderArgs& a, int repeat, double budget_ms, int cameras, int objects, int threads) {
+int cmd_bench_scene(const RenderArgs& a, int repeat, double budget_ms, int cameras, int objects, int threads,
+                    const pipeline::CycleParams& params) {
   auto in = model_input(a);
   if (!in) {
     fmt::print(stderr, "v4r bench: error: {}\n", in.error().to_string());
@@ -250,6 +251,7 @@ int cmd_bench_scene(const RenderArgs& a, int repeat, double budget_ms, int camer
   sc.objects = objects;
   sc.repeat = repeat;
   sc.budget_ms = budget_ms;
+  sc.params = params;
   sc.threads = threads;
   return app::run_scene_cost(sc);
 }
@@ -570,13 +572,8 @@ int main(int argc, char** argv) {
         fmt::print(stderr, "v4r bench: error: {}\n", c.error().to_string());
         return 2;
       }
-      if (bench_cameras > 1 || bench_objects > 1) {
-        if (!bench_config.empty() || !bench_sets.empty()) {
-          fmt::print(stderr, "v4r bench: error: --config and --set apply to the one-camera, one-object bench only\n");
-          return 2;
-        }
-        return cmd_bench_scene(ba, repeat, bench_budget, bench_cameras, bench_objects, bench_threads);
-      }
+      if (bench_cameras > 1 || bench_objects > 1)
+        return cmd_bench_scene(ba, repeat, bench_budget, bench_cameras, bench_objects, bench_threads, bench_params);
       return cmd_bench(ba, repeat, bench_budget, bench_params);
     }
     if (*inspect) {

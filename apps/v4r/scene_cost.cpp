@@ -63,7 +63,7 @@ RunResult run(const SceneCostInput& in, const std::vector<int>& cams, const std:
   std::vector<double> ms;
   std::vector<geometry::SE3> est;
   for (int r = 0; r < in.repeat; ++r) {
-    pipeline::CycleParams params;
+    pipeline::CycleParams params = in.params;
     params.budget.cycle_ms = in.budget_ms;
     params.threads = threads;
     pipeline::VisionCycle cycle(params);

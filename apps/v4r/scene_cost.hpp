@@ -7,6 +7,7 @@
 #include "v4r/geometry/camera.hpp"
 #include "v4r/geometry/se3.hpp"
 #include "v4r/model/model.hpp"
+#include "v4r/pipeline/cycle_params.hpp"
 #include "v4r/synth/renderer.hpp"
 
 namespace v4r::app {
@@ -21,6 +22,7 @@ struct SceneCostInput {
   int objects = 1;  ///< 1..4 copies of the model side by side (a row of two, a 2x2 grid)
   int repeat = 5;
   double budget_ms = 0.0;
+  pipeline::CycleParams params;  ///< the cycle's parameters (--config, --set); budget and threads from above
   int threads = 1;  ///< > 1: the cycle over all is also run on this many threads (cycle.threads)
 };
 

@@ -2,6 +2,7 @@
 #include "v4r/pipeline/object_measurer.hpp"
 
 #include <algorithm>
+#include <array>
 
 #include "v4r/pipeline/object_update.hpp"
 #include "v4r/pipeline/view_evidence.hpp"
@@ -234,14 +235,19 @@ ObjectSolve ObjectMeasurer::measure_views(const scene::Scene& scene, scene::Obje
   return best;
 }
 
-void ObjectMeasurer::choose_sample_pose(const scene::Scene& scene, scene::Object& obj, std::size_t vi,
-                                        const geometry::SE3& T_predicted, std::span<const CameraImage> images) {
-  scene::View& view = obj.views[vi];
-  const scene::Camera& cam = scene.cameras()[view.camera];
-  const CameraImage& img = images[view.camera];
+void ObjectMeasurer::choose_sample_pose(const scene::Scene& scene, scene::Object& obj, const geometry::SE3& T_ref_predicted,
+                                        std::span<const CameraImage> images) {
+  // The views with an image (at most SampleRefiner::kMaxViews); the first one's camera carries the pose.
+  std::array<std::size_t, SampleRefiner::kMaxViews> vis{};
+  std::size_t nv = 0;
+  for (std::size_t vi = 0; vi < obj.views.size() && nv < vis.size(); ++vi) {
+    const std::size_t c = obj.views[vi].camera;
+    if (c < images.size() && !images[c].grey.empty()) vis[nv++] = vi;
+  }
+  if (nv == 0) return;
   // Only where the line solve leaves doubt (samples.always: every frame): a visible edge it did
-  // not use (rejected, or not found; circles too with samples.arcs_doubt). Edges left out as side
-  // by side with another are no doubt: a face seen edge-on or a thin plate always has them.
+  // not use (rejected, or not found; circles too with samples.arcs_doubt) in any view. Edges left
+  // out as side by side with another are no doubt: a face seen edge-on or a thin plate always has them.
   bool doubt = p_.samples.always;
   // A feature missed for longer than samples.recent_frames is no new doubt (an edge the image
   // never shows, hidden by a part the model lacks).
@@ -250,47 +256,80 @@ void ObjectMeasurer::choose_sample_pose(const scene::Scene& scene, scene::Object
     return f.status == scene::FeatureStatus::kOutlier ||
            (f.status != scene::FeatureStatus::kFound && (recent <= 0 || f.frames_missing <= recent));
   };
-  for (const scene::LineFeature& f : view.lines) doubt = doubt || (f.visible && !f.ambiguous && unused(f));
-  for (const scene::ArcFeature& a : view.arcs) doubt = doubt || (p_.samples.arcs_doubt && a.visible && !a.dropped && unused(a));
+  for (std::size_t k = 0; k < nv; ++k) {
+    const scene::View& view = obj.views[vis[k]];
+    for (const scene::LineFeature& f : view.lines) doubt = doubt || (f.visible && !f.ambiguous && unused(f));
+    for (const scene::ArcFeature& a : view.arcs) doubt = doubt || (p_.samples.arcs_doubt && a.visible && !a.dropped && unused(a));
+  }
   if (!doubt) return;
-  // Gradients count from the lowest threshold the view's tracked edges needed (noise, texture).
-  double threshold = view_threshold(view);
-  if (!(threshold > 0.0)) threshold = p_.track.min_gradient;
-  geometry::SE3 T = T_predicted;
+  const auto camera = [&](std::size_t k) -> const scene::Camera& { return scene.cameras()[obj.views[vis[k]].camera]; };
+  const geometry::SE3 T_first_ref = camera(0).T_ref_cam.inverse();
+  std::array<SampleView, SampleRefiner::kMaxViews> sv;
+  for (std::size_t k = 0; k < nv; ++k) {
+    const scene::View& view = obj.views[vis[k]];
+    // Gradients count from the lowest threshold the view's tracked edges needed (noise, texture).
+    double threshold = view_threshold(view);
+    if (!(threshold > 0.0)) threshold = p_.track.min_gradient;
+    sv[k] = SampleView{&view, &camera(k).intrinsics, images[view.camera].grey, threshold,
+                       k == 0 ? geometry::SE3{} : camera(k).T_ref_cam.inverse() * camera(0).T_ref_cam};
+  }
+  geometry::SE3 T = T_first_ref * T_ref_predicted;  // the object in the first view's camera
   const auto tb = now_();
-  const bool refined = samples_.refine(*obj.model, view, cam.intrinsics, img.grey, threshold, T);
+  const bool refined = samples_.refine(*obj.model, std::span<const SampleView>(sv.data(), nv), T);
   solve_ms_ += ms_between(tb, now_());
   if (!refined) return;
-  // The line solve's pose; a per-sample pose within samples.same_px of it changes nothing.
-  const geometry::SE3 T_lines = view.T_cam_obj;
+  const geometry::SE3 T_ref = camera(0).T_ref_cam * T;
+  // The line solve's poses; a per-sample pose within samples.same_px of it (in every view)
+  // changes nothing.
+  struct Kept {
+    geometry::SE3 T_lines;
+    int samples = 0, matched = 0, leak_samples = 0, leak_matched = 0;
+  };
+  std::array<Kept, SampleRefiner::kMaxViews> kept;
   double shift = 0.0;  // px: the largest move of a visible edge's end
-  for (const scene::LineFeature& f : view.lines) {
-    if (!f.visible) continue;
-    for (const Eigen::Vector3d& X : {f.X1, f.X2}) {
-      const Eigen::Vector3d a = T * X, b = T_lines * X;
-      if (a.z() > 1e-3 && b.z() > 1e-3) shift = std::max(shift, (cam.intrinsics.project(a) - cam.intrinsics.project(b)).norm());
+  for (std::size_t k = 0; k < nv; ++k) {
+    const scene::View& view = obj.views[vis[k]];
+    const geometry::SE3 Tv = sv[k].T_cam_first * T;
+    kept[k] = Kept{view.T_cam_obj, view.evidence_samples, view.evidence_matched, view.leak_samples, view.leak_matched};
+    const geometry::PinholeCamera& K = camera(k).intrinsics;
+    for (const scene::LineFeature& f : view.lines) {
+      if (!f.visible) continue;
+      for (const Eigen::Vector3d& X : {f.X1, f.X2}) {
+        const Eigen::Vector3d a = Tv * X, b = view.T_cam_obj * X;
+        if (a.z() > 1e-3 && b.z() > 1e-3) shift = std::max(shift, (K.project(a) - K.project(b)).norm());
+      }
     }
   }
   if (!(shift >= p_.samples.same_px)) return;
-  const auto share = [](const scene::View& v) {
-    return v.evidence_samples > 0 ? static_cast<double>(v.evidence_matched) / v.evidence_samples : 0.0;
+  // The share of matched edge samples over the views.
+  const auto share = [&] {
+    int samples = 0, matched = 0;
+    for (std::size_t k = 0; k < nv; ++k) {
+      samples += obj.views[vis[k]].evidence_samples;
+      matched += obj.views[vis[k]].evidence_matched;
+    }
+    return samples > 0 ? static_cast<double>(matched) / samples : 0.0;
   };
   // Kept unless the image confirms the samples' pose better (its colour test is taken in the same
   // pass, and dropped with the pose).
-  const double lines_share = share(view);
-  const int samples = view.evidence_samples, matched = view.evidence_matched;
-  const int leak_samples = view.leak_samples, leak_matched = view.leak_matched;
-  view.T_cam_obj = T;
-  measure_view_evidence(evidence_, &contrast_, view, cam, img);
-  if (share(view) > lines_share + p_.samples.margin) {
-    solves_[0].T_ref_obj = cam.T_ref_cam * T;
+  const double lines_share = share();
+  for (std::size_t k = 0; k < nv; ++k) {
+    scene::View& view = obj.views[vis[k]];
+    view.T_cam_obj = sv[k].T_cam_first * T;
+    measure_view_evidence(evidence_, &contrast_, view, camera(k), images[view.camera]);
+  }
+  if (share() > lines_share + p_.samples.margin) {
+    solves_[0].T_ref_obj = T_ref;
     return;
   }
-  view.T_cam_obj = T_lines;
-  view.evidence_samples = samples;
-  view.evidence_matched = matched;
-  view.leak_samples = leak_samples;
-  view.leak_matched = leak_matched;
+  for (std::size_t k = 0; k < nv; ++k) {
+    scene::View& view = obj.views[vis[k]];
+    view.T_cam_obj = kept[k].T_lines;
+    view.evidence_samples = kept[k].samples;
+    view.evidence_matched = kept[k].matched;
+    view.leak_samples = kept[k].leak_samples;
+    view.leak_matched = kept[k].leak_matched;
+  }
 }
 
 void ObjectMeasurer::measure(const scene::Scene& scene, scene::Object& obj, std::span<const CameraImage> images,
@@ -300,15 +339,8 @@ void ObjectMeasurer::measure(const scene::Scene& scene, scene::Object& obj, std:
     for (const scene::LineFeature& f : view.lines) rep.features_visible += f.visible && !f.ambiguous && !f.dropped ? 1 : 0;
     for (const scene::ArcFeature& a : view.arcs) rep.features_visible += a.visible && !a.dropped ? 1 : 0;
   }
-  // The per-sample measurement starts from the predicted pose, for an object seen in one view.
-  std::size_t sole = obj.views.size();
-  for (std::size_t vi = 0; vi < obj.views.size(); ++vi) {
-    const std::size_t c = obj.views[vi].camera;
-    if (c >= images.size() || images[c].grey.empty()) continue;
-    sole = sole == obj.views.size() ? vi : obj.views.size() + 1;
-  }
-  const bool by_samples = p_.samples.enabled && sole < obj.views.size();
-  const geometry::SE3 T_predicted = by_samples ? obj.views[sole].T_cam_obj : geometry::SE3{};
+  // The per-sample measurement starts from the predicted pose.
+  const geometry::SE3 T_ref_predicted = obj.T_pred;
   // One solve over every view (CycleParams::joint_solve), or one per view, fused.
   solves_.clear();
   if (p_.joint_solve) {
@@ -324,7 +356,7 @@ void ObjectMeasurer::measure(const scene::Scene& scene, scene::Object& obj, std:
     if (view.camera >= images.size() || images[view.camera].grey.empty()) continue;
     measure_view_evidence(evidence_, &contrast_, view, scene.cameras()[view.camera], images[view.camera]);
   }
-  if (by_samples && solves_.size() == 1 && solves_[0].updated) choose_sample_pose(scene, obj, sole, T_predicted, images);
+  if (p_.samples.enabled && solves_.size() == 1 && solves_[0].updated) choose_sample_pose(scene, obj, T_ref_predicted, images);
   const auto tf = now_();
   update_object(obj, combine_solves(solves_), p_, rep, stamp_s);
   solve_ms_ += ms_between(tf, now_());

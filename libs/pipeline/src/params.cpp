@@ -142,7 +142,7 @@ ParamRegistry make_registry(CycleParams& p) {
   r.add("samples.iterations", &sm.iterations, 1, 100, "", "Gauss-Newton iterations at most, each searching again");
   r.add("samples.converged", &sm.converged_px, 0.0, 10.0, "px", "the iterations stop when a step moves the model by less than this in the image");
   r.add("samples.spacing", &sm.spacing_px, 1.0, 50.0, "px", "spacing of the edge samples along the projected edges");
-  r.add("samples.max_samples", &sm.max_samples, 16, 100000, "", "edge samples per view at most");
+  r.add("samples.max_samples", &sm.max_samples, 16, 100000, "", "edge samples per object at most (its views share them equally)");
   r.add("samples.same_px", &sm.same_px, 0.0, 100.0, "px",
         "a per-sample pose that moves the model by less than this from the line solve's is not compared (it changes nothing)");
   r.add("samples.margin", &sm.margin, 0.0, 1.0, "",

@@ -30,8 +30,8 @@ inline int round_px(double v) { return static_cast<int>(v + 0.5); }
 
 }  // namespace
 
-void SampleRefiner::reserve(std::size_t views) {
-  const std::size_t n = static_cast<std::size_t>(std::max(kMinSamples, p_.max_samples)) * std::clamp<std::size_t>(views, 1, kMaxViews);
+void SampleRefiner::reserve() {
+  const std::size_t n = static_cast<std::size_t>(std::max(kMinSamples, p_.max_samples));
   if (samples_.capacity() < n) samples_.reserve(n);
 }
 
@@ -48,8 +48,8 @@ void SampleRefiner::take_samples(const model::Model& model, std::span<const Samp
     X1 = model.junctions()[e.a].p;
     X2 = model.junctions()[e.b].p;
   };
-  const std::size_t per_view = std::min(static_cast<std::size_t>(std::max(kMinSamples, p_.max_samples)),
-                                        samples_.capacity() / std::max<std::size_t>(1, views.size()));
+  // max_samples over all views, an equal share each (a second camera costs no more per iteration).
+  const std::size_t per_view = samples_.capacity() / std::max<std::size_t>(1, views.size());
   Eigen::Vector3d X1, X2;
   for (std::size_t vi = 0; vi < views.size(); ++vi) {
     const scene::View& view = *views[vi].view;

@@ -102,9 +102,9 @@ struct RunResult {
   std::vector<int> alloc_frames;  // frames that allocated
 };
 
-RunResult run(const Rig& r, int cameras, int threads) {
+RunResult run(const Rig& r, int cameras, int threads, const pipeline::CycleParams& base = {}) {
   scene::Scene sc = make_scene(r, cameras);
-  pipeline::CycleParams p;
+  pipeline::CycleParams p = base;
   p.threads = threads;
   pipeline::VisionCycle cycle(p);
   RunResult out;
@@ -159,4 +159,30 @@ TEST(VisionCycleThreads, OneObjectsViewsInParallelGiveTheResultsOfOne) {
   const RunResult two = run(r, 2, 2);
   expect_same(one, two);
   EXPECT_EQ(two.allocations, 0) << "frames " << testing::PrintToString(two.alloc_frames);
+}
+
+TEST(VisionCycleThreads, TheTwoViewPerSamplePoseTracksTheRigAndAllocatesNothing) {
+  // The per-sample measurement over both views, run every frame and always kept (reaching 10 px:
+  // the rig starts 5 mm off): the object's pose is the one both cameras' samples agree on. From
+  // one camera alone the same samples let the depth drift (12 mm from frame 9); two views hold it.
+  const Rig r = make_rig(1, 12);
+  pipeline::CycleParams p;
+  p.samples.always = true;
+  p.samples.same_px = 0.0;
+  p.samples.margin = -1.0;
+  p.samples.range_px = 10.0;
+  const RunResult kept = run(r, 2, 1, p);
+  ASSERT_EQ(kept.poses.size(), r.truth[0].size());
+  for (std::size_t i = 0; i < kept.poses.size(); ++i) {
+    // Ten iterations a frame take the start's depth error (4 mm) out over the first frames.
+    const double mm = 1e3 * (kept.poses[i].translation() - r.truth[0][i].translation()).norm();
+    EXPECT_LT(mm, i < 4 ? 5.0 : 1.0) << "frame " << i;
+  }
+  EXPECT_EQ(kept.allocations, 0) << "frames " << testing::PrintToString(kept.alloc_frames);
+  // It moved the pose: not the line solve's.
+  const RunResult lines = run(r, 2, 1);
+  double moved_mm = 0.0;
+  for (std::size_t i = 0; i < kept.poses.size(); ++i)
+    moved_mm = std::max(moved_mm, 1e3 * (kept.poses[i].translation() - lines.poses[i].translation()).norm());
+  EXPECT_GT(moved_mm, 0.1);
 }

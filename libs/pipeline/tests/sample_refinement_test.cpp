@@ -85,11 +85,11 @@ TEST(SampleRefiner, TwoViewsMoveOnePose) {
   SampleRefineParams p;
   p.iterations = 30;
   SampleRefiner refiner(p);
-  refiner.reserve(2);
+  refiner.reserve();
   geometry::SE3 T = a.view.T_cam_obj;  // the object in the first camera
   const double start_mm = 1e3 * (T.translation() - a.truth.translation()).norm();
   ASSERT_TRUE(refiner.refine(*a.obj.model, views, T));
-  EXPECT_GT(refiner.samples(), 400u) << "both views sampled";
+  EXPECT_GT(refiner.samples(), 200u) << "both views sampled (150 each at most)";
   const double end_mm = 1e3 * (T.translation() - a.truth.translation()).norm();
   EXPECT_GT(start_mm, 15.0);
   EXPECT_LT(end_mm, 1.0) << "from " << start_mm << " mm";
@@ -120,7 +120,7 @@ TEST(SampleRefiner, ASecondViewAloneMovesTheFirstCamerasPose) {
   SampleRefineParams p;
   p.iterations = 30;
   SampleRefiner refiner(p);
-  refiner.reserve(2);
+  refiner.reserve();
   geometry::SE3 T = a.view.T_cam_obj;
   const double start_mm = 1e3 * (T.translation() - a.truth.translation()).norm();
   ASSERT_TRUE(refiner.refine(*a.obj.model, views, T));

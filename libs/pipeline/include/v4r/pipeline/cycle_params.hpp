@@ -82,7 +82,7 @@ struct SampleRefineParams {
   int iterations = 10;        ///< Gauss-Newton iterations at most (each searches again)
   double converged_px = 0.2;  ///< ... stopped when a step moves the model by less than this in the image
   double spacing_px = 3.0;    ///< spacing of the edge samples along the projected edges
-  int max_samples = 300;      ///< edge samples per view at most
+  int max_samples = 300;      ///< edge samples per object at most (its views share them equally)
   double same_px = 0.5;       ///< a pose within this of the line solve's (in the image) is not compared
   double margin = 0.02;       ///< its pose is kept when its edge evidence exceeds the line solve's by this share
 };

@@ -76,10 +76,11 @@ class ObjectMeasurer {
   ObjectSolve measure_views(const scene::Scene& scene, scene::Object& obj, std::span<const CameraImage> images,
                             std::size_t first, std::size_t last, ObjectReport& rep);
 
-  /// The per-sample measurement of the object's only view `vi`, from `T_predicted`: kept (in
-  /// solves_[0] and the view) when its edge evidence beats the line solve's by samples.margin.
-  void choose_sample_pose(const scene::Scene& scene, scene::Object& obj, std::size_t vi,
-                          const geometry::SE3& T_predicted, std::span<const CameraImage> images);
+  /// The per-sample measurement over the object's views with an image, from `T_ref_predicted`:
+  /// kept (in solves_[0] and the views) when its edge evidence over the views beats the line
+  /// solve's by samples.margin.
+  void choose_sample_pose(const scene::Scene& scene, scene::Object& obj, const geometry::SE3& T_ref_predicted,
+                          std::span<const CameraImage> images);
 
   CycleParams p_;
   Clock::time_point (*now_)();

@@ -27,7 +27,7 @@ struct SampleView {
 /// \brief The per-sample measurement of an object's pose (SampleRefineParams), beside the line
 /// windows, over one or several views: each view's visible edges (tracked, side by side, or merged
 /// with a neighbour: then its own model edge) and circles are sampled about `spacing_px` apart at
-/// the start pose; in each Gauss-Newton iteration every sample is projected again and takes the
+/// the start pose (further apart where a view's share of `max_samples` would not suffice); in each Gauss-Newton iteration every sample is projected again and takes the
 /// strongest gradient aligned with its normal within `range_px` along it (Sobel at those pixels
 /// only, placed to a fraction of a pixel), Tukey-weighted with the same width. All views move one
 /// pose, that of the object in the first view's camera. Buffers are sized by reserve(); refine()
@@ -38,8 +38,8 @@ class SampleRefiner {
 
   explicit SampleRefiner(const SampleRefineParams& p) : p_(p) {}
 
-  /// The sample buffer: max_samples per view, for up to `views` views (at most kMaxViews).
-  void reserve(std::size_t views = 1);
+  /// The sample buffer (max_samples, shared by the views).
+  void reserve();
   /// Refines `T_cam_obj` (the object in the first view's camera) in place from its value; a
   /// gradient counts from each view's threshold. False (T_cam_obj as given) when fewer than 12
   /// samples found a gradient or the step diverged.
@@ -59,7 +59,7 @@ class SampleRefiner {
     std::size_t view = 0;    // index into refine()'s views
   };
   /// Samples of the views' edges at T_cam_obj (first camera) into samples_; the spacing grows
-  /// to keep max_samples per view.
+  /// to keep each view to its share of max_samples.
   void take_samples(const model::Model& model, std::span<const SampleView> views, const geometry::SE3& T_cam_obj);
   /// Offset (px) along n of the strongest aligned gradient within range of px, or NaN; placed
   /// to a fraction of a pixel by a parabola through its neighbours. Gradients count from
