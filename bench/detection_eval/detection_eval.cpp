@@ -445,11 +445,14 @@ int main(int argc, char** argv) {
         all_ms.push_back(r.total_ms);
         if (std::getenv("V4R_EVAL_DEBUG"))
           diagnose(det, *set, *m, params, cam, T, sym, r, hyp, img, fmt::format("{} #{}", scenes::scene_name(scenes[si]), k));
+        const char* outcome = "none verified";
         if (r.verified > 0) {
           const PoseError e = symmetric_pose_error(hyp[0].T_cam_obj, T, sym);
+          outcome = within_bounds(e) ? "right" : "wrong";
           if (within_bounds(e)) ++ok;
           else ++wrong;
         }
+        if (std::getenv("V4R_EVAL_DEBUG")) fmt::print(stderr, "   result: {}\n", outcome);
       }
       fmt::print("{},{},{},{},{:.3f},{},{:.1f},{:.1f},{:.1f},{:.1f},{:.1f}\n", name, scenes::scene_name(scenes[si]), images, ok,
                  static_cast<double>(ok) / images, wrong, percentile(ms, 0.5), percentile(ms, 0.95), percentile(grad_ms, 0.5),
