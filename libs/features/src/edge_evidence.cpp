@@ -22,25 +22,16 @@ bool EdgeEvidence::add_sample(const image::ImageView& img, const Eigen::Vector2d
   // g_e(o) = (I(p + o n + kAlong e) - I(p + o n - kAlong e)) / (2 kAlong).
   std::array<float, 2 * kMaxSearch + 5> v{}, ge{};
   const int span = reach;
-  // Bilinear samples without the clamp of ImageView::sample: the box checked above holds them.
-  const auto at = [&img](double x, double y) {
-    const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
-    const float ax = static_cast<float>(x - x0), ay = static_cast<float>(y - y0);
-    const std::uint8_t* r0 = img.data + static_cast<long>(y0) * img.stride + x0;
-    const std::uint8_t* r1 = r0 + img.stride;
-    const float top = r0[0] + ax * (static_cast<float>(r0[1]) - r0[0]);
-    const float bot = r1[0] + ax * (static_cast<float>(r1[1]) - r1[0]);
-    return top + ay * (bot - top);
-  };
-  // The profile is filled as far as the test below needs it: it stops at the first match.
+  // The profile is filled as far as the test below needs it: it stops at the first match. Its
+  // bilinear samples skip ImageView::sample's clamp: the box checked above holds them.
   int filled = -span;
   const auto fill_to = [&](int last_o) {
     for (; filled <= last_o; ++filled) {
       const Eigen::Vector2d q = p + static_cast<double>(filled) * n;
-      const float first = at(q.x() - kAlong * e.x(), q.y() - kAlong * e.y());
-      const float last = at(q.x() + kAlong * e.x(), q.y() + kAlong * e.y());
+      const float first = img.sample_inside(q.x() - kAlong * e.x(), q.y() - kAlong * e.y());
+      const float last = img.sample_inside(q.x() + kAlong * e.x(), q.y() + kAlong * e.y());
       float acc = first;
-      for (int t = -kAlong + 1; t < kAlong; ++t) acc += at(q.x() + t * e.x(), q.y() + t * e.y());
+      for (int t = -kAlong + 1; t < kAlong; ++t) acc += img.sample_inside(q.x() + t * e.x(), q.y() + t * e.y());
       acc += last;
       v[static_cast<std::size_t>(filled + span)] = acc / (2 * kAlong + 1);
       ge[static_cast<std::size_t>(filled + span)] = (last - first) / (2 * kAlong);

@@ -43,18 +43,6 @@ constexpr std::uint32_t kDefaultSeed = 0x9E3779B9u;  // xorshift state must not 
 
 bool finite(const Eigen::Vector2d& p) { return std::isfinite(p.x()) && std::isfinite(p.y()); }
 
-/// Bilinear sample without clamping (same arithmetic as ImageView::sample); the caller guarantees
-/// kInsideMargin <= x <= width - 1 - kInsideMargin, likewise y.
-inline float sample_inside(const image::ImageView& img, double x, double y) {
-  const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
-  const float ax = static_cast<float>(x - x0), ay = static_cast<float>(y - y0);
-  const std::uint8_t* r0 = img.data + static_cast<long>(y0) * img.stride + x0;
-  const std::uint8_t* r1 = r0 + img.stride;
-  const float top = r0[0] + ax * (static_cast<float>(r0[1]) - r0[0]);
-  const float bot = r1[0] + ax * (static_cast<float>(r1[1]) - r1[0]);
-  return top + ay * (bot - top);
-}
-
 /// Parameters made safe to use: sizes clamped to what the algorithm needs, NaN replaced by the
 /// default. The tracker keeps (and reports through params()) the sanitised copy.
 EllipseTrackerParams sanitize(EllipseTrackerParams p) {
@@ -270,9 +258,9 @@ void EllipseTracker::search_line(const image::ImageView& img, int i, int want_si
     // The four corners inside => every sample inside (the image is convex).
     for (int j = 0; j < cols; ++j) {
       const Eigen::Vector2d q = first + static_cast<double>(j) * n;
-      const float minus = sample_inside(img, q.x() - t.x(), q.y() - t.y());
-      const float plus = sample_inside(img, q.x() + t.x(), q.y() + t.y());
-      prof[j] = (minus + sample_inside(img, q.x(), q.y()) + plus) * (1.0f / 3.0f);
+      const float minus = img.sample_inside(q.x() - t.x(), q.y() - t.y());
+      const float plus = img.sample_inside(q.x() + t.x(), q.y() + t.y());
+      prof[j] = (minus + img.sample_inside(q.x(), q.y()) + plus) * (1.0f / 3.0f);
       gt[j] = 0.5f * (plus - minus);
       inside_[j] = 1;
     }

@@ -23,6 +23,12 @@ struct ImageView {
     const double xmax = width - 1.0001, ymax = height - 1.0001;
     if (x > xmax) x = xmax;
     if (y > ymax) y = ymax;
+    return sample_inside(x, y);
+  }
+
+  /// Bilinear sample without clamping: the caller guarantees 0 <= x < width - 1 and
+  /// 0 <= y < height - 1 (the four neighbours exist).
+  [[nodiscard]] float sample_inside(double x, double y) const {
     const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
     const float ax = static_cast<float>(x - x0), ay = static_cast<float>(y - y0);
     const std::uint8_t* r0 = data + static_cast<long>(y0) * stride + x0;
