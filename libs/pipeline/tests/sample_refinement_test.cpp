@@ -73,28 +73,41 @@ geometry::SE3 right_camera() {
   return geometry::SE3(Eigen::Quaterniond(Eigen::AngleAxisd(-5.0 * M_PI / 180.0, Eigen::Vector3d::UnitY())), Eigen::Vector3d(0.12, 0.0, 0.0));
 }
 
+/// Refines the object's pose in camera a's frame from a's predicted pose over the views of a
+/// and b (b's camera relative to a's from their T_ref_cam), with up to 30 iterations.
+struct TwoViewFit {
+  static SampleRefineParams params() {
+    SampleRefineParams q;
+    q.iterations = 30;
+    return q;
+  }
+  SampleRefineParams p = params();
+  SampleRefiner refiner{p};
+  geometry::SE3 T;
+  bool refined = false;
+  TwoViewFit(const BoxView& a, const BoxView& b) : T(a.view.T_cam_obj) {
+    refiner.reserve();
+    const SampleView views[] = {{&a.view, &a.cam.intrinsics, a.image(), 3.0, geometry::SE3{}},
+                                {&b.view, &b.cam.intrinsics, b.image(), 3.0, b.cam.T_ref_cam.inverse() * a.cam.T_ref_cam}};
+    refined = refiner.refine(*a.obj.model, views, T);
+  }
+};
+
 TEST(SampleRefiner, TwoViewsMoveOnePose) {
   // 2 cm along the first camera's axis and 0.5 degrees: the first view sees the box a little
   // smaller, the second (toed in, 12 cm away) also sees it sideways.
   geometry::Vector6d xi;
   xi << 0.002, 0.0, 0.02, 0.0, 0.009, 0.0;
   const BoxView a(geometry::SE3::exp(xi)), b(geometry::SE3::exp(xi), right_camera());
-  const geometry::SE3 T_b_a = b.cam.T_ref_cam.inverse() * a.cam.T_ref_cam;
-  const SampleView views[] = {{&a.view, &a.cam.intrinsics, a.image(), 3.0, geometry::SE3{}},
-                              {&b.view, &b.cam.intrinsics, b.image(), 3.0, T_b_a}};
-  SampleRefineParams p;
-  p.iterations = 30;
-  SampleRefiner refiner(p);
-  refiner.reserve();
-  geometry::SE3 T = a.view.T_cam_obj;  // the object in the first camera
-  const double start_mm = 1e3 * (T.translation() - a.truth.translation()).norm();
-  ASSERT_TRUE(refiner.refine(*a.obj.model, views, T));
-  EXPECT_GT(refiner.samples(), 200u) << "both views sampled (150 each at most)";
-  const double end_mm = 1e3 * (T.translation() - a.truth.translation()).norm();
+  const double start_mm = 1e3 * (a.view.T_cam_obj.translation() - a.truth.translation()).norm();
+  const TwoViewFit fit(a, b);
+  ASSERT_TRUE(fit.refined);
+  EXPECT_GT(fit.refiner.samples(), 200u) << "both views sampled (150 each at most)";
+  const double end_mm = 1e3 * (fit.T.translation() - a.truth.translation()).norm();
   EXPECT_GT(start_mm, 15.0);
   EXPECT_LT(end_mm, 1.0) << "from " << start_mm << " mm";
-  EXPECT_LT(rotation_deg(T, a.truth), 0.1);
-  EXPECT_LT(refiner.iterations(), p.iterations) << "did not converge";
+  EXPECT_LT(rotation_deg(fit.T, a.truth), 0.1);
+  EXPECT_LT(fit.refiner.iterations(), fit.p.iterations) << "did not converge";
 }
 
 /// A camera swung 60 degrees about the vertical through the box (camera A's y axis): the box seen
@@ -114,21 +127,14 @@ TEST(SampleRefiner, ASecondViewAloneMovesTheFirstCamerasPose) {
   BoxView a(geometry::SE3::exp(xi));
   const BoxView b(geometry::SE3::exp(xi), swung_camera());
   a.grey.setTo(128);
-  const geometry::SE3 T_b_a = b.cam.T_ref_cam.inverse() * a.cam.T_ref_cam;
-  const SampleView views[] = {{&a.view, &a.cam.intrinsics, a.image(), 3.0, geometry::SE3{}},
-                              {&b.view, &b.cam.intrinsics, b.image(), 3.0, T_b_a}};
-  SampleRefineParams p;
-  p.iterations = 30;
-  SampleRefiner refiner(p);
-  refiner.reserve();
-  geometry::SE3 T = a.view.T_cam_obj;
-  const double start_mm = 1e3 * (T.translation() - a.truth.translation()).norm();
-  ASSERT_TRUE(refiner.refine(*a.obj.model, views, T));
-  const double end_mm = 1e3 * (T.translation() - a.truth.translation()).norm();
+  const double start_mm = 1e3 * (a.view.T_cam_obj.translation() - a.truth.translation()).norm();
+  const TwoViewFit fit(a, b);
+  ASSERT_TRUE(fit.refined);
+  const double end_mm = 1e3 * (fit.T.translation() - a.truth.translation()).norm();
   EXPECT_GT(start_mm, 3.0);
   EXPECT_LT(end_mm, 1.0) << "from " << start_mm << " mm";
   // As close as this view alone brings its own camera's pose (0.24 deg, refined by itself).
-  EXPECT_LT(rotation_deg(T, a.truth), 0.5);
+  EXPECT_LT(rotation_deg(fit.T, a.truth), 0.5);
 }
 
 TEST(SampleRefiner, OnAnImageWithoutEdgesThePoseStays) {
