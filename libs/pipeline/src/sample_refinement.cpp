@@ -162,12 +162,11 @@ bool SampleRefiner::refine(const model::Model& model, std::span<const SampleView
   std::array<double, kMaxViews> min_sobel2{};
   std::array<Eigen::Matrix3d, kMaxViews> R;
   std::array<Eigen::Vector3d, kMaxViews> t;
-  std::array<Eigen::Matrix3d, kMaxViews> Rf;  // T_cam_first's rotation and translation
-  std::array<Eigen::Vector3d, kMaxViews> tf;
+  // A left step of the first camera's pose is the step Ad(T_cam_first) * delta in this camera's.
+  std::array<geometry::Matrix6d, kMaxViews> Ad;
   for (std::size_t vi = 0; vi < views.size(); ++vi) {
     min_sobel2[vi] = 64.0 * views[vi].threshold * views[vi].threshold;
-    Rf[vi] = views[vi].T_cam_first.rotation();
-    tf[vi] = views[vi].T_cam_first.translation();
+    Ad[vi] = geometry::adjoint(views[vi].T_cam_first);
   }
   const double tukey = p_.range_px;
   geometry::SE3 T = T_cam_obj;
@@ -193,13 +192,7 @@ bool SampleRefiner::refine(const model::Model& model, std::span<const SampleView
       if (std::abs(u) >= 1.0) continue;
       const double w = (1.0 - u * u) * (1.0 - u * u);
       geometry::Vector6d J = geometry::normal_motion_jacobian(Xc, s.normal, K.fx, K.fy);
-      if (vi != 0) {
-        // A left update of the first camera's pose seen from this camera (the adjoint's transpose):
-        // dv = R' Jv, dw = R' (Jw - t x Jv) with T_cam_first = (R, t).
-        const Eigen::Vector3d Jv = J.head<3>(), Jw = J.tail<3>();
-        J.head<3>() = Rf[vi].transpose() * Jv;
-        J.tail<3>() = Rf[vi].transpose() * (Jw - tf[vi].cross(Jv));
-      }
+      if (vi != 0) J = (Ad[vi].transpose() * J).eval();  // w.r.t. the first camera's step
       // Residual: the projected sample minus the edge found along n.
       H.noalias() += w * J * J.transpose();
       b.noalias() -= w * r * J;
@@ -218,11 +211,8 @@ bool SampleRefiner::refine(const model::Model& model, std::span<const SampleView
     double move_px = 0.0;
     for (std::size_t vi = 0; vi < views.size(); ++vi) {
       const geometry::SE3 Tv = vi == 0 ? T : views[vi].T_cam_first * T;
-      Eigen::Vector3d v = delta.head<3>(), w = delta.tail<3>();
-      if (vi != 0) {  // the step in this camera's frame (the adjoint)
-        w = Rf[vi] * delta.tail<3>();
-        v = Rf[vi] * delta.head<3>() + tf[vi].cross(w);
-      }
+      const geometry::Vector6d step = vi == 0 ? delta : geometry::Vector6d(Ad[vi] * delta);
+      const Eigen::Vector3d v = step.head<3>(), w = step.tail<3>();
       const double z = std::max(std::abs(Tv.translation().z()), 1e-3);
       move_px = std::max(move_px, views[vi].K->focal() * (w.norm() + v.norm() / z));
     }
