@@ -61,6 +61,7 @@ void BM_SampleRefine(benchmark::State& state) {
   state.counters["iterations"] = iterations / std::max(1.0, n);
   state.counters["samples"] = samples / std::max(1.0, n);
 }
-BENCHMARK(BM_SampleRefine)->Arg(0)->Arg(1)->ArgName("section")->Unit(benchmark::kMicrosecond);
+// model 0: the box, 1: the section.
+BENCHMARK(BM_SampleRefine)->Arg(0)->Arg(1)->ArgName("model")->Unit(benchmark::kMicrosecond);
 
 }  // namespace

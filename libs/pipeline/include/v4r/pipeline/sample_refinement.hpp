@@ -27,11 +27,11 @@ struct SampleView {
 /// \brief The per-sample measurement of an object's pose (SampleRefineParams), beside the line
 /// windows, over one or several views: each view's visible edges (tracked, side by side, or merged
 /// with a neighbour: then its own model edge) and circles are sampled about `spacing_px` apart at
-/// the start pose (further apart where a view's share of `max_samples` would not suffice); in each Gauss-Newton iteration every sample is projected again and takes the
-/// strongest gradient aligned with its normal within `range_px` along it (Sobel at those pixels
-/// only, placed to a fraction of a pixel), Tukey-weighted with the same width. All views move one
-/// pose, that of the object in the first view's camera. Buffers are sized by reserve(); refine()
-/// allocates nothing.
+/// the start pose (further apart where a view's share of `max_samples` would not suffice); in each
+/// Gauss-Newton iteration every sample is projected again and takes the strongest gradient aligned
+/// with its normal within `range_px` along it (Sobel at those pixels only, placed to a fraction of
+/// a pixel), Tukey-weighted with the same width. All views move one pose, that of the object in
+/// the first view's camera. Buffers are sized by reserve(); refine() allocates nothing.
 class SampleRefiner {
  public:
   static constexpr std::size_t kMaxViews = 8;  ///< views beyond are not sampled
