@@ -3,8 +3,9 @@
 // ViSP-images/mbt/cube, 218 frames of a hand-held camera around an 8.4 cm cube) and every .cao
 // model of that package.
 //
-// The cube sequence has no ground truth: the reference is ViSP 3.5's own edge tracker's
-// trajectory, tests/data/visp_cube_reference.csv (how it was produced: tests/data/README.md).
+// The cube sequence has no ground truth: the references are ViSP 3.5's own trajectories, of its
+// edge tracker (tests/data/visp_cube_reference.csv) and of its hybrid edge and KLT tracker
+// (tests/data/visp_cube_klt_reference.csv); how they were produced: tests/data/README.md.
 //
 // Without the package the tests skip, unless V4R_REQUIRE_VISP_IMAGES is set (`make test` sets it
 // and installs the package), in which case they fail.
@@ -57,6 +58,38 @@ Eigen::Vector3d unit_vector(std::mt19937& g) {
   return v.normalized();
 }
 
+/// How far v4r's poses of frames 1-217 are from one of ViSP's trajectories (printed).
+struct Deviation {
+  double t_med = 0.0, t_max = 0.0, r_med = 0.0, r_max = 0.0;  // mm, deg
+  int beyond = 0;                                              // frames beyond 10 mm or 4 deg
+};
+
+Deviation deviation(const std::vector<geometry::SE3>& poses, const std::vector<io::PoseRow>& reference, const char* name) {
+  std::vector<double> et_mm, er_deg;
+  Deviation d;
+  int worst_t_frame = 0, worst_r_frame = 0;
+  for (std::size_t i = 0; i < poses.size(); ++i) {
+    const geometry::SE3& R = reference[i + 1].T_cam_obj;
+    et_mm.push_back(1e3 * (poses[i].translation() - R.translation()).norm());
+    er_deg.push_back(rotation_deg(poses[i].rotation(), R.rotation()));
+    if (et_mm.back() > 10.0 || er_deg.back() > 4.0) ++d.beyond;
+    if (et_mm.back() > d.t_max) {
+      d.t_max = et_mm.back();
+      worst_t_frame = static_cast<int>(i + 1);
+    }
+    if (er_deg.back() > d.r_max) {
+      d.r_max = er_deg.back();
+      worst_r_frame = static_cast<int>(i + 1);
+    }
+  }
+  d.t_med = median(et_mm);
+  d.r_med = median(er_deg);
+  std::printf("[visp cube] vs %s over frames 1-217: translation median %.2f mm, max %.2f mm (frame %d); rotation "
+              "median %.2f deg, max %.2f deg (frame %d); %d frames beyond 10 mm / 4 deg\n",
+              name, d.t_med, d.t_max, worst_t_frame, d.r_med, d.r_max, worst_r_frame, d.beyond);
+  return d;
+}
+
 }  // namespace
 
 TEST(VispCube, TracksTheRealCubeFromAPerturbedStartLikeViSP) {
@@ -82,47 +115,50 @@ TEST(VispCube, TracksTheRealCubeFromAPerturbedStartLikeViSP) {
 
   pipeline::SingleObjectTracker tracker(model, cube.camera);
   tracker.set_pose(T0_perturbed);
-  std::vector<double> et_mm, er_deg;
-  int lost = 0, first_lost = -1, worst_t_frame = -1, beyond = 0;
-  double worst_t = -1.0;
+  std::vector<geometry::SE3> poses;  // frames 1-217
+  int lost = 0, first_lost = -1;
   for (std::size_t k = 0; k < frames.size(); ++k) {
     const cv::Mat grey = cv::imread(frames[k].string(), cv::IMREAD_GRAYSCALE);
     ASSERT_FALSE(grey.empty()) << frames[k];
     const pipeline::FrameResult r = tracker.track(io::as_view(grey));
     if (k == 0) continue;  // the first frame starts from the perturbed pose
-    const geometry::SE3& R = cube.reference[k].T_cam_obj;
-    et_mm.push_back(1e3 * (r.T_cam_obj.translation() - R.translation()).norm());
-    er_deg.push_back(rotation_deg(r.T_cam_obj.rotation(), R.rotation()));
-    if (et_mm.back() > 10.0 || er_deg.back() > 4.0) ++beyond;
-    if (et_mm.back() > worst_t) {
-      worst_t = et_mm.back();
-      worst_t_frame = static_cast<int>(k);
-    }
+    poses.push_back(r.T_cam_obj);
     if (r.report.status == scene::TrackStatus::kLost) {
       ++lost;
       if (first_lost < 0) first_lost = static_cast<int>(k);
     }
   }
-  const double t_med = median(et_mm), t_max = *std::max_element(et_mm.begin(), et_mm.end());
-  const double r_med = median(er_deg), r_max = *std::max_element(er_deg.begin(), er_deg.end());
-  std::printf("[visp cube] vs ViSP over frames 1-217: translation median %.2f mm, max %.2f mm (frame %d); rotation "
-              "median %.2f deg, max %.2f deg; %d frames beyond 10 mm / 4 deg; %d frames lost (first %d)\n",
-              t_med, t_max, worst_t_frame, r_med, r_max, beyond, lost, first_lost);
-  RecordProperty("translation_median_mm", fmt::format("{:.3f}", t_med));
-  RecordProperty("translation_max_mm", fmt::format("{:.3f}", t_max));
-  RecordProperty("rotation_median_deg", fmt::format("{:.3f}", r_med));
-  RecordProperty("rotation_max_deg", fmt::format("{:.3f}", r_max));
-  RecordProperty("frames_beyond_10mm_4deg", beyond);
+  const Deviation edge = deviation(poses, cube.reference, "ViSP's edge tracker");
+  const Deviation hybrid = deviation(poses, cube.hybrid_reference, "ViSP's edge and KLT tracker");
+  std::printf("[visp cube] %d frames lost (first %d)\n", lost, first_lost);
+  RecordProperty("translation_median_mm", fmt::format("{:.3f}", edge.t_med));
+  RecordProperty("translation_max_mm", fmt::format("{:.3f}", edge.t_max));
+  RecordProperty("rotation_median_deg", fmt::format("{:.3f}", edge.r_med));
+  RecordProperty("rotation_max_deg", fmt::format("{:.3f}", edge.r_max));
+  RecordProperty("frames_beyond_10mm_4deg", edge.beyond);
+  RecordProperty("hybrid_translation_max_mm", fmt::format("{:.3f}", hybrid.t_max));
+  RecordProperty("hybrid_rotation_max_deg", fmt::format("{:.3f}", hybrid.r_max));
+  RecordProperty("hybrid_frames_beyond_10mm_4deg", hybrid.beyond);
   EXPECT_EQ(lost, 0) << "first lost at frame " << first_lost;
-  EXPECT_LE(t_med, 3.0);
-  EXPECT_LE(r_med, 1.5);
-  // Issue 8's target for the largest deviation is 10 mm / 4 degrees; v4r is not there yet (25 mm
-  // / 9.3 degrees at frame 188, where ViSP's two trackers disagree or its edge trajectory jumps).
-  // With the line windows alone (samples.enabled=false): 23 frames beyond it, 26.8 mm / 12.6 deg
-  // at most; with the per-sample measurement beside them, 13-14 frames from eight perturbed starts.
-  EXPECT_LE(beyond, 16);
-  EXPECT_LE(t_max, 30.0);
-  EXPECT_LE(r_max, 11.0);
+  EXPECT_LE(edge.t_med, 3.0);
+  EXPECT_LE(edge.r_med, 1.5);
+  // Issue 8's target for the largest deviation is 10 mm / 4 degrees; against ViSP's edge
+  // trajectory v4r is not there (25 mm / 9.3 degrees at frame 188). With the line windows alone
+  // (samples.enabled=false): 23 frames beyond it, 26.8 mm / 12.6 deg at most; with the per-sample
+  // measurement beside them, 13-14 frames from eight perturbed starts.
+  EXPECT_LE(edge.beyond, 16);
+  EXPECT_LE(edge.t_max, 30.0);
+  EXPECT_LE(edge.r_max, 11.0);
+  // ViSP's two trackers differ by up to 24.8 mm / 9.8 degrees (18 frames beyond 10 mm / 4 degrees,
+  // 184-189 among them; tests/data/README.md). Against its hybrid trajectory, which also follows
+  // the texture's points, v4r is beyond 10 mm / 4 degrees in 2-3 frames (24 perturbed starts:
+  // at most 10.4 mm, at frame 215, and 4.6 degrees, at frames 175-176 where one face is seen
+  // nearly frontally and its turn is hardly observable).
+  EXPECT_LE(hybrid.t_med, 3.0);
+  EXPECT_LE(hybrid.r_med, 1.5);
+  EXPECT_LE(hybrid.beyond, 4);
+  EXPECT_LE(hybrid.t_max, 12.0);
+  EXPECT_LE(hybrid.r_max, 5.0);
 }
 
 TEST(VispCube, EveryCaoModelOfVispImagesLoads) {
