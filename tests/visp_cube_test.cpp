@@ -145,7 +145,7 @@ TEST(VispCube, TracksTheRealCubeFromAPerturbedStartLikeViSP) {
   // Issue 8's target for the largest deviation is 10 mm / 4 degrees; against ViSP's edge
   // trajectory v4r is not there (25 mm / 9.3 degrees at frame 188). With the line windows alone
   // (samples.enabled=false): 23 frames beyond it, 26.8 mm / 12.6 deg at most; with the per-sample
-  // measurement beside them, 13-14 frames from eight perturbed starts.
+  // measurement beside them, 13-14 frames from 24 perturbed starts.
   EXPECT_LE(edge.beyond, 16);
   EXPECT_LE(edge.t_max, 30.0);
   EXPECT_LE(edge.r_max, 11.0);
