@@ -165,8 +165,8 @@ void diagnose(Detector& det, const TemplateSet& set, const model::Model& m, cons
     if (within_bounds(e)) best_right = std::max(best_right, hyp[h].verification.score);
     else best_wrong = std::max(best_wrong, hyp[h].verification.score);
     const PoseError e0 = symmetric_pose_error(hyp[h].T_template, T, sym);
-    if (std::getenv("V4R_EVAL_DEBUG")[0] == '2') fmt::print(stderr, "   h{} tpl {:.2f} (err {:.3f} m {:.1f} deg) share {:.2f} score {:.2f} leak {:.2f} ({}) err {:.3f} m {:.1f} deg{}\n", h, hyp[h].template_score,
-               e0.translation, e0.rotation * 57.3, hyp[h].verification.match_share, hyp[h].verification.score,
+    if (std::getenv("V4R_EVAL_DEBUG")[0] == '2') fmt::print(stderr, "   h{} tpl {:.2f} (err {:.3f} m {:.1f} deg) n {} runs {} share {:.2f} score {:.2f} leak {:.2f} ({}) err {:.3f} m {:.1f} deg{}\n", h, hyp[h].template_score,
+               e0.translation, e0.rotation * 57.3, hyp[h].verification.samples, hyp[h].verification.in_runs, hyp[h].verification.match_share, hyp[h].verification.score,
                hyp[h].verification.leak, hyp[h].verification.leak_samples, e.translation, e.rotation * 57.3,
                hyp[h].verified ? " verified" : "");
   }

@@ -60,6 +60,8 @@ void add_params(ParamRegistry& r, DetectorParams& p) {
         "iterations polishing the best verified pose over all its edge samples, edges placed to a fraction of a pixel (0: off)");
   r.add("detect.verify.polish_range", &f.polish_range_px, 0.5, 32.0, "px",
         "search range and Tukey width of that polish along the edge normal");
+  r.add("detect.verify.plateau", &f.plateau_px, 0.0, 32.0, "px",
+        "a gradient plateau this wide along the normal (a blurred edge) is matched at its centroid in the alignment and polish (0: off)");
   r.add("detect.verify.unfold_faces", &f.unfold_faces, 0, 8, "",
         "large faces of the best verified pose seen edge-on that are turned into view, polished and kept when the edge score rises (0: off)");
   r.add("detect.verify.unfold_deg", &f.unfold_deg, 0.5, 45.0, "deg", "... faces seen at less than this are turned to be seen at this");

@@ -1,6 +1,7 @@
 // v4r - robust model-based object tracking. MIT licence.
 #include "v4r/detection/edge_alignment.hpp"
 
+#include <array>
 #include <cmath>
 #include <limits>
 
@@ -78,6 +79,46 @@ double EdgeAligner::search(const GradientPyramid& g, const Eigen::Vector2d& px, 
   return best_t;
 }
 
+double EdgeAligner::plateau_centre(const GradientPyramid& g, const EdgeSample& s, int k0) const {
+  constexpr int kReach = 16;  // px either side of the match
+  const int w = g.width(), h = g.height();
+  // Gradient along the normal at px + k n, signed by the match's polarity; 0 where weak or not
+  // aligned.
+  double sign = 1.0;
+  const auto along = [&](int k) {
+    const int x = round_px(s.px.x() + k * s.normal.x());
+    const int y = round_px(s.px.y() + k * s.normal.y());
+    if (x < 1 || y < 1 || x >= w - 1 || y >= h - 1) return 0.0;
+    const double gx = g.gx(x, y), gy = g.gy(x, y);
+    const double m2 = gx * gx + gy * gy;
+    const double dot = gx * s.normal.x() + gy * s.normal.y();
+    if (m2 < min_sobel2_ || dot * dot < cos_search_ * cos_search_ * m2) return 0.0;
+    return sign * dot;
+  };
+  const double d0 = along(k0);
+  if (!(d0 != 0.0)) return k0;
+  sign = d0 > 0.0 ? 1.0 : -1.0;
+  // The run of same-polarity edge pixels through k0 (kept, k0 - kReach .. k0 + kReach).
+  std::array<double, 2 * kReach + 1> run{};
+  run[kReach] = std::abs(d0);
+  int lo = 0, hi = 0;
+  while (lo > -kReach && (run[kReach + lo - 1] = along(k0 + lo - 1)) > 0.0) --lo;
+  while (hi < kReach && (run[kReach + hi + 1] = along(k0 + hi + 1)) > 0.0) ++hi;
+  double peak = 0.0;
+  for (int k = lo; k <= hi; ++k) peak = std::max(peak, run[kReach + k]);
+  // Its pixels at half the peak or more: the plateau, located at its centroid when wide.
+  double sw = 0.0, swk = 0.0;
+  int wide = 0;
+  for (int k = lo; k <= hi; ++k) {
+    const double d = run[kReach + k];
+    if (d < 0.5 * peak) continue;
+    sw += d;
+    swk += d * k;
+    ++wide;
+  }
+  return wide >= p_.plateau_px && sw > 0.0 ? k0 + swk / sw : static_cast<double>(k0);
+}
+
 void EdgeAligner::set_threshold(const GradientPyramid& g) {
   const double t = threshold_.at(g.noise());
   min_sobel2_ = 64.0 * t * t;  // Sobel is 8x the gradient
@@ -146,10 +187,8 @@ int EdgeAligner::polish(const GradientPyramid& g, geometry::SE3& T) {
   return moved;
 }
 
-double EdgeAligner::search_subpixel(const GradientPyramid& g, const Eigen::Vector2d& px, const Eigen::Vector2d& n,
-                                    double range) const {
-  const double t = search(g, px, n, range);
-  if (std::isnan(t)) return t;
+double EdgeAligner::parabola_peak(const GradientPyramid& g, const Eigen::Vector2d& px, const Eigen::Vector2d& n,
+                                  double t) const {
   const int w = g.width(), h = g.height();
   // |gradient . n| at t - 1, t, t + 1 (pixels nearest the normal's points).
   double v[3];
@@ -170,10 +209,14 @@ bool EdgeAligner::align_step(const GradientPyramid& g, std::size_t n, double ran
   geometry::Vector6d b = geometry::Vector6d::Zero();
   int used = 0;
   const double huber = 1.5;
+  const bool plateaus = p_.plateau_px > 0.0;
   for (std::size_t i = 0; i < n; ++i) {
     const EdgeSample& s = samples_[i];
-    const double t = subpixel ? search_subpixel(g, s.px, s.normal, range) : search(g, s.px, s.normal, range);
+    double t = search(g, s.px, s.normal, range);
     if (std::isnan(t)) continue;
+    const double c = plateaus ? plateau_centre(g, s, static_cast<int>(t)) : t;
+    if (c != t) t = c;
+    else if (subpixel) t = parabola_peak(g, s.px, s.normal, t);
     const Eigen::Vector3d Xc = T * s.p_obj;
     const double z = Xc.z();
     if (z <= 1e-6) continue;

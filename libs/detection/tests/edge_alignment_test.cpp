@@ -1,5 +1,9 @@
 // v4r - robust model-based object tracking. MIT licence.
-// EdgeAligner's edge test: an edge whose line the image continues past both ends does not count.
+// EdgeAligner's edge test (an edge whose line the image continues past both ends does not count;
+// a run of matches goes on over a single miss) and its alignment (a blurred edge is matched at its
+// centre).
+#include <algorithm>
+#include <cstdio>
 #include <random>
 #include <utility>
 #include <vector>
@@ -11,6 +15,7 @@
 #include "v4r/detection/edge_alignment.hpp"
 #include "v4r/detection/edge_projection.hpp"
 #include "v4r/detection/gradient_pyramid.hpp"
+#include "v4r/detection/symmetry.hpp"
 #include "v4r/io/frame_source.hpp"
 #include "v4r/model/cao_reader.hpp"
 
@@ -136,4 +141,60 @@ TEST(EdgeAligner, ARunGoesOnOverASingleMiss) {
     ++tested;
   }
   EXPECT_GE(tested, 4);
+}
+
+TEST(EdgeAligner, ABlurredEdgeIsMatchedAtItsCentre) {
+  // Motion blur spreads an edge into a ramp whose gradient is a plateau some pixels wide: its
+  // strongest pixel is anywhere on it (the search prefers the nearest), its centroid is where the
+  // edge was in the middle of the exposure. On blurred renders of the box and the welded section
+  // (the detection tests' blur: 4 mm and 1 deg over the exposure, the truth at its end), poses
+  // refined and polished from starts 2 mm and 0.5 deg off the truth end nearer the pose in the
+  // middle of the exposure when plateaus are matched at their centroids (detect.verify.plateau).
+  // Measured: median rotation error 0.57 -> 0.10 deg (box), 1.53 -> 0.27 deg (section).
+  const geometry::PinholeCamera cam = synth::default_camera();
+  // The scenes' motion over the exposure (scenes::render_scene): T_prev = exp(v) T.
+  const geometry::Vector6d v = (geometry::Vector6d() << 0.0035, -0.002, 0.0, 0.008, 0.012, 0.006).finished();
+  for (const bool section : {false, true}) {
+    const char* name = section ? "section" : "box";
+    auto parsed = model::parse_cao(section ? synth::ship_section_cao() : synth::box_cao(), name);
+    ASSERT_TRUE(parsed);
+    const model::Model& m = *parsed;
+    const auto sym = model_symmetries(m);
+    DetectorParams with;
+    ASSERT_GT(with.verify.plateau_px, 0.0);
+    DetectorParams without = with;
+    without.verify.plateau_px = 0.0;
+    EdgeAligner a_with(m, cam, with), a_without(m, cam, without);
+    GradientPyramid g(cam.width, cam.height, with.search.fine_spread, with.search.coarse_spread);
+    std::mt19937 rng(section ? 31 : 17);
+    std::normal_distribution<double> gauss;
+    std::vector<double> e_with, e_without;
+    for (int k = 0; k < 16; ++k) {
+      const geometry::SE3 T = scenes::random_pose(m, with.views, cam, rng);
+      const cv::Mat img = scenes::render_scene(m, T, cam, scenes::Scene::kBlur, 500u + static_cast<unsigned>(k));
+      ASSERT_TRUE(g.compute(io::as_colour_view(img), GradientThreshold{with.verify.min_gradient, with.verify.min_gradient_floor,
+                                                                       with.verify.noise_factor}));
+      const geometry::SE3 T_mid = geometry::SE3::exp(0.5 * v) * T;
+      const Eigen::Vector3d dt = Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng)).normalized() * 0.002;
+      const Eigen::Vector3d dr = Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng)).normalized() * (0.5 * kDeg);
+      const geometry::SE3 start = geometry::SE3::from_rvec(dt, dr) * T;
+      const auto error_deg = [&](EdgeAligner& a) {
+        geometry::SE3 Te = start;
+        a.refine(g, Te);
+        a.polish(g, Te);
+        return symmetric_pose_error(Te, T_mid, sym).rotation / kDeg;
+      };
+      e_with.push_back(error_deg(a_with));
+      e_without.push_back(error_deg(a_without));
+    }
+    const auto median = [](std::vector<double> e) {
+      std::nth_element(e.begin(), e.begin() + static_cast<std::ptrdiff_t>(e.size() / 2), e.end());
+      return e[e.size() / 2];
+    };
+    const double med_with = median(e_with), med_without = median(e_without);
+    std::printf("%s: median rotation error from the middle of the exposure %.2f deg at the strongest pixel, %.2f deg at plateau centroids\n",
+                name, med_without, med_with);
+    EXPECT_LT(med_with, 0.5 * med_without) << name;
+    EXPECT_LT(med_with, 0.4) << name;
+  }
 }

@@ -75,6 +75,10 @@ struct VerifyParams {
   /// polish_range px weighted by Tukey's biweight of that width (0: off).
   int polish_iterations = 10;
   double polish_range_px = 1.5;
+  /// A gradient plateau along the normal at least this wide (px: a motion-blurred edge, each
+  /// pixel at least half the plateau's peak, same polarity) is matched at its centroid in the
+  /// alignment and the polish, not at its strongest or nearest pixel (0: off).
+  double plateau_px = 4.0;
   /// After its polish, the best verified pose tries to unfold its faces seen edge-on
   /// (GrazingFaces): each face of at least a tenth of the largest face's area, turned away by at
   /// most unfold_band_deg or seen at less than unfold_deg, is turned to be seen at unfold_deg

@@ -80,9 +80,12 @@ class EdgeAligner {
   double loose_share(const GradientPyramid& g, const geometry::SE3& T, double range);
   /// Signed offset (px) along `n` of the best gradient within `range` px of `px`, or NaN.
   double search(const GradientPyramid& g, const Eigen::Vector2d& px, const Eigen::Vector2d& n, double range) const;
-  /// As search, the offset refined to a fraction of a pixel (parabola through the gradient along n).
-  double search_subpixel(const GradientPyramid& g, const Eigen::Vector2d& px, const Eigen::Vector2d& n,
-                         double range) const;
+  /// The centroid (offset along the sample's normal, px) of the gradient plateau through offset k0
+  /// (a motion-blurred edge) when it is at least p.verify.plateau_px wide, else k0.
+  double plateau_centre(const GradientPyramid& g, const EdgeSample& s, int k0) const;
+  /// Offset `t` (a search result) refined to a fraction of a pixel: the vertex of the parabola
+  /// through the gradient along n at t - 1, t, t + 1.
+  double parabola_peak(const GradientPyramid& g, const Eigen::Vector2d& px, const Eigen::Vector2d& n, double t) const;
   /// One Gauss-Newton step of the alignment over samples_[0, n): matches within `range` px, Huber
   /// or Tukey (tukey_px > 0) weights; false when fewer than 12 samples matched.
   bool align_step(const GradientPyramid& g, std::size_t n, double range, double tukey_px, bool subpixel,
