@@ -96,7 +96,7 @@ double EdgeAligner::plateau_centre(const GradientPyramid& g, const EdgeSample& s
     return sign * dot;
   };
   const double d0 = along(k0);
-  if (!(d0 != 0.0)) return k0;
+  if (d0 == 0.0) return k0;
   sign = d0 > 0.0 ? 1.0 : -1.0;
   // The run of same-polarity edge pixels through k0 (kept, k0 - kReach .. k0 + kReach).
   std::array<double, 2 * kReach + 1> run{};
