@@ -62,6 +62,12 @@ inline geometry::SE3 random_pose(const model::Model& m, const ViewRange& v, cons
   return geometry::SE3(Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), ray), Eigen::Vector3d::Zero()) * T0;
 }
 
+/// The motion over the exposure of a kBlur scene (4 mm and 1 degree): it starts at
+/// exp(blur_motion()) * T and ends at T, so the pose in its middle is exp(blur_motion() / 2) * T.
+inline geometry::Vector6d blur_motion() {
+  return (geometry::Vector6d() << 0.0035, -0.002, 0.0, 0.008, 0.012, 0.006).finished();
+}
+
 /// Renders `m` at `T` under scene condition `s` (colour, 640x480 for the default camera);
 /// kOcclusion covers 30 % of the object's area with the renderer's occluder.
 inline cv::Mat render_scene(const model::Model& m, const geometry::SE3& T, const geometry::PinholeCamera& cam, Scene s,
@@ -83,8 +89,7 @@ inline cv::Mat render_scene(const model::Model& m, const geometry::SE3& T, const
   synth::Renderer r(cam, ro);
   r.set_scene_reference(m, {T, T});
   if (s == Scene::kBlur) {
-    // Motion over the exposure: 4 mm and 1 degree.
-    const geometry::SE3 prev = geometry::SE3::exp((geometry::Vector6d() << 0.0035, -0.002, 0.0, 0.008, 0.012, 0.006).finished()) * T;
+    const geometry::SE3 prev = geometry::SE3::exp(blur_motion()) * T;
     return r.render(m, T, 1, &prev);
   }
   return r.render(m, T, s == Scene::kOcclusion ? 1 : 0);

@@ -152,8 +152,6 @@ TEST(EdgeAligner, ABlurredEdgeIsMatchedAtItsCentre) {
   // middle of the exposure when plateaus are matched at their centroids (detect.verify.plateau).
   // Measured: median rotation error 0.57 -> 0.10 deg (box), 1.53 -> 0.27 deg (section).
   const geometry::PinholeCamera cam = synth::default_camera();
-  // The scenes' motion over the exposure (scenes::render_scene): T_prev = exp(v) T.
-  const geometry::Vector6d v = (geometry::Vector6d() << 0.0035, -0.002, 0.0, 0.008, 0.012, 0.006).finished();
   for (const bool section : {false, true}) {
     const char* name = section ? "section" : "box";
     auto parsed = model::parse_cao(section ? synth::ship_section_cao() : synth::box_cao(), name);
@@ -174,7 +172,7 @@ TEST(EdgeAligner, ABlurredEdgeIsMatchedAtItsCentre) {
       const cv::Mat img = scenes::render_scene(m, T, cam, scenes::Scene::kBlur, 500u + static_cast<unsigned>(k));
       ASSERT_TRUE(g.compute(io::as_colour_view(img), GradientThreshold{with.verify.min_gradient, with.verify.min_gradient_floor,
                                                                        with.verify.noise_factor}));
-      const geometry::SE3 T_mid = geometry::SE3::exp(0.5 * v) * T;
+      const geometry::SE3 T_mid = geometry::SE3::exp(0.5 * scenes::blur_motion()) * T;
       const Eigen::Vector3d dt = Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng)).normalized() * 0.002;
       const Eigen::Vector3d dr = Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng)).normalized() * (0.5 * kDeg);
       const geometry::SE3 start = geometry::SE3::from_rvec(dt, dr) * T;
