@@ -62,6 +62,7 @@ Eigen::Vector3d unit_vector(std::mt19937& g) {
 struct Deviation {
   double t_med = 0.0, t_max = 0.0, r_med = 0.0, r_max = 0.0;  // mm, deg
   int beyond = 0;                                              // frames beyond 10 mm or 4 deg
+  std::vector<std::uint8_t> beyond_at;                         // per frame 1-217: beyond
 };
 
 Deviation deviation(const std::vector<geometry::SE3>& poses, const std::vector<io::PoseRow>& reference, const char* name) {
@@ -72,7 +73,9 @@ Deviation deviation(const std::vector<geometry::SE3>& poses, const std::vector<i
     const geometry::SE3& R = reference[i + 1].T_cam_obj;
     et_mm.push_back(1e3 * (poses[i].translation() - R.translation()).norm());
     er_deg.push_back(rotation_deg(poses[i].rotation(), R.rotation()));
-    if (et_mm.back() > 10.0 || er_deg.back() > 4.0) ++d.beyond;
+    const bool beyond = et_mm.back() > 10.0 || er_deg.back() > 4.0;
+    d.beyond += beyond ? 1 : 0;
+    d.beyond_at.push_back(beyond ? 1 : 0);
     if (et_mm.back() > d.t_max) {
       d.t_max = et_mm.back();
       worst_t_frame = static_cast<int>(i + 1);
@@ -130,7 +133,10 @@ TEST(VispCube, TracksTheRealCubeFromAPerturbedStartLikeViSP) {
   }
   const Deviation edge = deviation(poses, cube.reference, "ViSP's edge tracker");
   const Deviation hybrid = deviation(poses, cube.hybrid_reference, "ViSP's edge and KLT tracker");
-  std::printf("[visp cube] %d frames lost (first %d)\n", lost, first_lost);
+  int beyond_both = 0;  // frames beyond 10 mm / 4 deg of both of ViSP's trajectories
+  for (std::size_t i = 0; i < edge.beyond_at.size(); ++i) beyond_both += edge.beyond_at[i] && hybrid.beyond_at[i] ? 1 : 0;
+  std::printf("[visp cube] %d frames lost (first %d); %d frames beyond 10 mm / 4 deg of both trajectories\n", lost,
+              first_lost, beyond_both);
   RecordProperty("translation_median_mm", fmt::format("{:.3f}", edge.t_med));
   RecordProperty("translation_max_mm", fmt::format("{:.3f}", edge.t_max));
   RecordProperty("rotation_median_deg", fmt::format("{:.3f}", edge.r_med));
@@ -139,24 +145,31 @@ TEST(VispCube, TracksTheRealCubeFromAPerturbedStartLikeViSP) {
   RecordProperty("hybrid_translation_max_mm", fmt::format("{:.3f}", hybrid.t_max));
   RecordProperty("hybrid_rotation_max_deg", fmt::format("{:.3f}", hybrid.r_max));
   RecordProperty("hybrid_frames_beyond_10mm_4deg", hybrid.beyond);
+  RecordProperty("frames_beyond_both", beyond_both);
   EXPECT_EQ(lost, 0) << "first lost at frame " << first_lost;
   EXPECT_LE(edge.t_med, 3.0);
   EXPECT_LE(edge.r_med, 1.5);
   // Issue 8's target for the largest deviation is 10 mm / 4 degrees; against ViSP's edge
   // trajectory v4r is not there (25 mm / 9.3 degrees at frame 188). With the line windows alone
   // (samples.enabled=false): 23 frames beyond it, 26.8 mm / 12.6 deg at most; with the per-sample
-  // measurement beside them, 13-14 frames from 24 perturbed starts.
-  EXPECT_LE(edge.beyond, 16);
+  // measurement beside them, 13-14 frames from 24 perturbed starts; since a grazing face's hidden
+  // edges no longer crowd the silhouette out of the cycle (ViewPredictor::mark_ambiguous), 10 from
+  // this start and 10.9 on average over 72 perturbed starts (10-23).
+  EXPECT_LE(edge.beyond, 13);
   EXPECT_LE(edge.t_max, 30.0);
   EXPECT_LE(edge.r_max, 11.0);
   // ViSP's two trackers differ by up to 24.8 mm / 9.8 degrees (18 frames beyond 10 mm / 4 degrees,
   // 184-189 among them; tests/data/README.md). Against its hybrid trajectory, which also follows
-  // the texture's points, v4r is beyond 10 mm / 4 degrees in 2-3 frames (24 perturbed starts:
-  // at most 10.4 mm, at frame 215, and 4.6 degrees, at frames 175-176 where one face is seen
-  // nearly frontally and its turn is hardly observable).
+  // the texture's points, v4r is beyond 10 mm / 4 degrees in 1 frame from this start (frame 184,
+  // 4.6 degrees, where it is within 2 degrees of the edge trajectory); 1.8 frames on average over
+  // 72 perturbed starts, 2.6 before the grazing-edge change (175-176, where one face is seen
+  // nearly frontally and its turn is hardly observable). Beyond both trajectories at once: none
+  // from this start, 0.74 frames on average over the 72 starts (2 of them 11 and 13 frames, at
+  // 171-183), 2.0 before (175-176 from every start).
+  EXPECT_LE(beyond_both, 1);
   EXPECT_LE(hybrid.t_med, 3.0);
   EXPECT_LE(hybrid.r_med, 1.5);
-  EXPECT_LE(hybrid.beyond, 4);
+  EXPECT_LE(hybrid.beyond, 3);
   EXPECT_LE(hybrid.t_max, 12.0);
   EXPECT_LE(hybrid.r_max, 5.0);
 }

@@ -134,7 +134,9 @@ void ViewPredictor::mark_ambiguous(scene::View& view, const scene::Camera& cam) 
   // its own side); when that leaves less than split_min_px towards the other edge, the pair is
   // tracked as one: the visible one (the first of two) is measured against the pair's mid-line
   // with a sigma widened by half their separation, and the other is left out (a thin plate's
-  // two edges, a face seen edge-on whose far edge runs along the silhouette).
+  // two edges, a face seen edge-on whose far edge runs along the silhouette). A third edge
+  // beside such a pair leaves all of them out, unless it is hidden (a grazing face's edge,
+  // which only widens the pair's sigma).
   const geometry::PinholeCamera& K = cam.intrinsics;
   // (The wide search window reaches further than the tracking window.)
   const double max_dist =
@@ -196,6 +198,13 @@ void ViewPredictor::mark_ambiguous(scene::View& view, const scene::Camera& cam) 
         scene::LineFeature& keep = f.visible && !f.ambiguous ? f : g;
         scene::LineFeature& other = &keep == &f ? g : f;
         if (!keep.visible || keep.ambiguous || keep.merged || other.merged) {
+          // A hidden edge of a face seen at a grazing angle (a sliver at most) does not crowd a
+          // pair: the pair's edge stays, its sigma widened to cover it. (Left out with it, a
+          // cube's silhouette went with the far edges of its side face turning edge-on.)
+          if (keep.visible && !keep.ambiguous && !other.visible) {
+            keep.sigma_px = std::max(keep.sigma_px, p_.line_sigma_px + 0.5 * std::abs(&keep == &f ? s_g : s_f));
+            continue;
+          }
           f.ambiguous = f.ambiguous || f.visible;  // a third edge in the pair: too crowded
           g.ambiguous = g.ambiguous || g.visible;
           continue;
