@@ -162,10 +162,11 @@ TEST(VispCube, TracksTheRealCubeFromAPerturbedStartLikeViSP) {
   // 184-189 among them; tests/data/README.md). Against its hybrid trajectory, which also follows
   // the texture's points, v4r is beyond 10 mm / 4 degrees in 1 frame from this start (frame 184,
   // 4.6 degrees, where it is within 2 degrees of the edge trajectory); 1.8 frames on average over
-  // 72 perturbed starts, 2.6 before the grazing-edge change (175-176, where one face is seen
+  // 72 perturbed starts, 2.7 before the grazing-edge change (175-176, where one face is seen
   // nearly frontally and its turn is hardly observable). Beyond both trajectories at once: none
-  // from this start, 0.74 frames on average over the 72 starts (2 of them 11 and 13 frames, at
-  // 171-183), 2.0 before (175-176 from every start).
+  // from this start, 0.74 frames on average over the 72 starts (2 of them 11 and 13 frames; in
+  // the one examined, the top-front crease jumps onto a band printed on the top face at frame
+  // 171), 2.0 before (175-176 from every start).
   EXPECT_LE(beyond_both, 1);
   EXPECT_LE(hybrid.t_med, 3.0);
   EXPECT_LE(hybrid.r_med, 1.5);
