@@ -38,25 +38,41 @@ const char* kBox = R"(V1
 0
 )";
 
-struct Fixture {
+/// An object of the .cao text `cao` predicted at `T_pred` (no model when it does not parse).
+scene::Object object_from_cao(const char* cao, const char* name, const geometry::SE3& T_pred) {
   scene::Object obj;
+  auto m = model::parse_cao(cao, name);
+  EXPECT_TRUE(m.has_value()) << name;
+  if (m) obj.model = std::make_shared<const model::Model>(std::move(*m));
+  obj.T_pred = T_pred;
+  return obj;
+}
+
+/// A 640 x 480 camera.
+scene::Camera camera_640x480(double fx, double fy, double cx, double cy) {
   scene::Camera cam;
+  cam.intrinsics.width = 640;
+  cam.intrinsics.height = 480;
+  cam.intrinsics.fx = fx;
+  cam.intrinsics.fy = fy;
+  cam.intrinsics.cx = cx;
+  cam.intrinsics.cy = cy;
+  return cam;
+}
+
+/// One view of a camera, as the scene makes it: a line feature per model edge, no face seen yet.
+scene::View fresh_view(const model::Model& m) {
   scene::View view;
-  Fixture() {
-    auto m = model::parse_cao(kBox, "box.cao");
-    EXPECT_TRUE(m.has_value());
-    obj.model = std::make_shared<const model::Model>(std::move(*m));
-    cam.intrinsics.width = 640;
-    cam.intrinsics.height = 480;
-    cam.intrinsics.fx = cam.intrinsics.fy = 600;
-    cam.intrinsics.cx = 319.5;
-    cam.intrinsics.cy = 239.5;
-    obj.T_pred = geometry::look_at(0.6, 0.5, 0.6);
-    // One view of the camera, as the scene makes it: a line feature per model edge.
-    view.lines.resize(obj.model->lines().size());
-    for (std::size_t i = 0; i < view.lines.size(); ++i) view.lines[i].edge = static_cast<model::Index>(i);
-    view.face_visible.assign(obj.model->faces().size(), 0);
-  }
+  view.lines.resize(m.lines().size());
+  for (std::size_t i = 0; i < view.lines.size(); ++i) view.lines[i].edge = static_cast<model::Index>(i);
+  view.face_visible.assign(m.faces().size(), 0);
+  return view;
+}
+
+struct Fixture {
+  scene::Object obj = object_from_cao(kBox, "box.cao", geometry::look_at(0.6, 0.5, 0.6));
+  scene::Camera cam = camera_640x480(600, 600, 319.5, 239.5);
+  scene::View view = obj.model ? fresh_view(*obj.model) : scene::View{};
   [[nodiscard]] bool object_side(std::size_t li, int k) const { return view.lines[li].track.side[k].is_object; }
 };
 
@@ -153,25 +169,16 @@ TEST(ViewPredictor, AShortEdgeAlongALongerOneFromTheSameCornerIsLeftOut) {
 0
 0
 )";
-  auto m = model::parse_cao(plate, "plate.cao");
-  ASSERT_TRUE(m.has_value());
-  scene::Object obj;
-  obj.model = std::make_shared<const model::Model>(std::move(*m));
-  scene::Camera cam;
-  cam.intrinsics.width = 640;
-  cam.intrinsics.height = 480;
-  cam.intrinsics.fx = cam.intrinsics.fy = 600;
-  cam.intrinsics.cx = 320;
-  cam.intrinsics.cy = 240;
-  obj.T_pred = geometry::SE3(Eigen::Quaterniond(0.395112785, 0.707698090, 0.546391252, -0.210964215),
-                             Eigen::Vector3d(-0.036455773, 0.012927776, 0.531658317));
+  const scene::Object obj =
+      object_from_cao(plate, "plate.cao",
+                      geometry::SE3(Eigen::Quaterniond(0.395112785, 0.707698090, 0.546391252, -0.210964215),
+                                    Eigen::Vector3d(-0.036455773, 0.012927776, 0.531658317)));
+  ASSERT_NE(obj.model, nullptr);
+  const scene::Camera cam = camera_640x480(600, 600, 320, 240);
   const auto predict = [&](double converging_px) {
     CycleParams p;
     p.converging_px = converging_px;
-    scene::View view;
-    view.lines.resize(obj.model->lines().size());
-    for (std::size_t i = 0; i < view.lines.size(); ++i) view.lines[i].edge = static_cast<model::Index>(i);
-    view.face_visible.assign(obj.model->faces().size(), 0);
+    scene::View view = fresh_view(*obj.model);
     ViewPredictor(p).predict(obj, view, cam);
     return view;
   };
@@ -230,23 +237,13 @@ TEST(ViewPredictor, HiddenEdgesOfAFaceTurningEdgeOnDoNotTakeTheSilhouetteOut) {
 0
 0
 )";
-  auto m = model::parse_cao(cube, "cube.cao");
-  ASSERT_TRUE(m.has_value());
-  scene::Object obj;
-  obj.model = std::make_shared<const model::Model>(std::move(*m));
-  scene::Camera cam;
-  cam.intrinsics.width = 640;
-  cam.intrinsics.height = 480;
-  cam.intrinsics.fx = 547.7367575;
-  cam.intrinsics.fy = 542.0744058;
-  cam.intrinsics.cx = 338.7036994;
-  cam.intrinsics.cy = 234.5083345;
-  obj.T_pred = geometry::SE3(Eigen::Quaterniond(0.390383825, 0.920643015, -0.00232692269, 0.00339023125).normalized(),
-                             Eigen::Vector3d(0.0299028137, -0.0533262504, 0.692615449));
-  scene::View view;
-  view.lines.resize(obj.model->lines().size());
-  for (std::size_t i = 0; i < view.lines.size(); ++i) view.lines[i].edge = static_cast<model::Index>(i);
-  view.face_visible.assign(obj.model->faces().size(), 0);
+  const scene::Object obj = object_from_cao(
+      cube, "cube.cao",
+      geometry::SE3(Eigen::Quaterniond(0.390383825, 0.920643015, -0.00232692269, 0.00339023125).normalized(),
+                    Eigen::Vector3d(0.0299028137, -0.0533262504, 0.692615449)));
+  ASSERT_NE(obj.model, nullptr);
+  const scene::Camera cam = camera_640x480(547.7367575, 542.0744058, 338.7036994, 234.5083345);
+  scene::View view = fresh_view(*obj.model);
   CycleParams p;
   ViewPredictor predictor(p);
   predictor.predict(obj, view, cam);  // the faces' visibility settles (hysteresis) on the first call
