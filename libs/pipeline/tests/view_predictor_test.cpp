@@ -209,11 +209,11 @@ TEST(ViewPredictor, AShortEdgeAlongALongerOneFromTheSameCornerIsLeftOut) {
 // ViSP's 84 mm cube as v4r tracked it at frame 174 of its real sequence (Debian's
 // visp-images-data; camera as tests/data/visp_cube_camera.yaml), the prediction for frame 175:
 // the front and top faces are seen at about 45 degrees, the left and right faces edge-on, just
-// turned away. Their hidden far edges
-// (grazing: slivers at most) project beside the front and top faces' silhouette edges, two beside
-// each corner. Each silhouette edge is paired with the first of them; the second, hidden too, only
-// widens its sigma. (Left out as "too crowded", the front face's two silhouette edges went, and the
-// turn about the vertical axis was free: v4r's pose ran 4.5 degrees off there.)
+// turned away. Their hidden far edges (grazing: slivers at most) project beside the front and top
+// faces' silhouette edges, two beside each corner. Each silhouette edge is paired with the first
+// of them; the second, hidden too, only widens its sigma. (Left out as "too crowded", the front
+// face's two silhouette edges went, and the turn about the vertical axis was free: v4r's pose ran
+// 4.5 degrees off there.)
 TEST(ViewPredictor, HiddenEdgesOfAFaceTurningEdgeOnDoNotTakeTheSilhouetteOut) {
   const char* cube = R"(V1
 8
