@@ -46,6 +46,9 @@ void add_search_params(ParamRegistry& r, ObjectSearchParams& p) {
         "the same for a restart around the last tracked pose (then the whole image is not searched on that frame)");
   r.add("search.edge_test_evidence", &p.edge_test_evidence, 0.0, 1.0, "",
         "below its accept share but at least this, a found pose is accepted when the detector's edge test verifies it (>= accept_evidence: off)");
+  r.add("search.stand_out_evidence", &p.stand_out_evidence, 0.0, 1.0, "",
+        "a detector pose verified only because it stands out (partly hidden) is accepted at this share, when the tracker keeps it "
+        "within the confirm limits (>= accept_evidence: off)");
   r.add("search.view_margin", &p.view_margin_deg, 0.0, 180.0, "deg",
         "a found pose must lie in the detector's view range (detect.views.*) widened by this");
   r.add("search.confirm_translation", &p.confirm_translation_m, 0.0, 10.0, "m",
@@ -86,10 +89,11 @@ void ObjectSearch::add_object(const scene::Scene& scene, std::size_t object,
   // The search confirms hypotheses itself (tracked, evidence over two frames, its own leak test);
   // it takes the detector's ranking by the edge test alone. The detector's colour test moved a
   // nested pose ahead of the truth on box_occlusion (benchmark) and the search locked onto it.
-  // (Its stand-out verdict, which also takes the colour test, is off for the same reason.)
+  // Its stand-out verdict, which acts only when no pose is verified by its edges, lowers the
+  // evidence share that pose's refinement needs (stand_out_evidence; off: the verdict is not run).
   detection::DetectorParams search_dp = dp_;
   search_dp.verify.leak_score = 1.0;
-  search_dp.verify.stand_out_score = 1.0;
+  if (p_.stand_out_evidence >= p_.accept_evidence) search_dp.verify.stand_out_score = 1.0;
   s.detector = std::make_unique<detection::Detector>(objs[object].model, std::move(templates),
                                                      scene.cameras()[0].intrinsics, search_dp);
   const detection::ModelExtent ext = detection::model_extent(*objs[object].model);
@@ -224,24 +228,30 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
   accepted_.clear();
   // The object's tag, if given and seen: a pose of the object must put it where it is seen.
   const detection::TagObservation tag = s.tag ? s.tag->detect(img.grey) : detection::TagObservation{};
-  const auto consider = [&](geometry::SE3 T, bool local) {
+  const auto consider = [&](geometry::SE3 T, bool local, double accept, bool stood_out = false) {
     if (stop.stop_requested()) {  // shutting down: the hypotheses left are not refined
       rep.cancelled = true;
       return -1.0;
     }
     ++rep.tried;
-    double e = refine(object, img, stamp_s, T, local ? p_.local_accept_evidence : p_.accept_evidence);
+    const geometry::SE3 T_start = T;
+    double e = refine(object, img, stamp_s, T, accept);
+    // A pose that stood out and is accepted below the usual share: the refinement must keep it.
+    if (e >= 0.0 && stood_out && last_evidence_ < p_.accept_evidence &&
+        ((T.translation() - T_start.translation()).norm() > p_.confirm_translation_m ||
+         geometry::rotation_angle_between(T, T_start) > p_.confirm_rotation_deg * kDeg))
+      e = -1.0;
     if (e >= 0.0 && tag.found && s.tag->corner_offset_px(tag, T) > p_.tag.max_offset_px) {
       e = -1.0;
       ++rep.tag_vetoed;
     }
     if (e >= 0.0 && accepted_.size() < accepted_.capacity())
-      accepted_.push_back({T, e, last_evidence_, last_leak_, last_leak_samples_, local});
+      accepted_.push_back({T, e, last_evidence_, last_leak_, last_leak_samples_, local, accept});
     return e;
   };
   // (1) Last frame's candidate, tracked on this frame: confirmed when it stays put.
   if (s.have_candidate) {
-    const double e = consider(s.T_candidate, s.candidate_local);
+    const double e = consider(s.T_candidate, s.candidate_local, s.candidate_accept);
     const geometry::SE3 T = e >= 0.0 ? accepted_.back().T_cam_obj : s.T_candidate;  // refined
     const bool close = e >= 0.0 && (T.translation() - s.T_candidate.translation()).norm() <= p_.confirm_translation_m &&
                        geometry::rotation_angle_between(T, s.T_candidate) <= p_.confirm_rotation_deg * kDeg;
@@ -264,7 +274,7 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
   bool tag_accepted = false;
   for (int k = 0; k < tag.poses; ++k) {
     ++rep.tag_poses;
-    if (consider(tag.T_cam_obj[static_cast<std::size_t>(k)], false) >= 0.0) tag_accepted = true;
+    if (consider(tag.T_cam_obj[static_cast<std::size_t>(k)], false, p_.accept_evidence) >= 0.0) tag_accepted = true;
   }
   // (3) Perturbed restarts around the last pose (first search frames after a loss); one accepted
   // makes the whole-image detector unnecessary on this frame.
@@ -280,7 +290,7 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
     const geometry::SE3 centres[] = {s.T_last, moving ? geometry::SE3::exp(s.v_last * dt) * s.T_last : s.T_last};
     for (int c = 0; c < (moving ? 2 : 1); ++c)
       for (int k = 0; k < n; ++k)
-        if (consider(geometry::SE3(Eigen::Quaterniond::Identity(), shifts[k]) * centres[c], true) >= 0.0)
+        if (consider(geometry::SE3(Eigen::Quaterniond::Identity(), shifts[k]) * centres[c], true, p_.local_accept_evidence) >= 0.0)
           local_accepted = true;
   }
   // (4) The detector over the whole image.
@@ -293,9 +303,15 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
     rep.detect_ms = ms_between(td, Clock::now());
     if (r.status == detection::DetectionResult::Status::kOk) {
       const int n = std::min<int>(r.hypotheses, std::min<int>(p_.hypotheses, static_cast<int>(hyp_.size())));
-      for (int k = 0; k < n; ++k) consider(hyp_[static_cast<std::size_t>(k)].T_cam_obj, false);
+      const double accept_score = s.detector->params().verify.accept_score;
+      for (int k = 0; k < n; ++k) {
+        const detection::Hypothesis& h = hyp_[static_cast<std::size_t>(k)];
+        const bool stands_out = h.verified && h.verification.score < accept_score;
+        consider(h.T_cam_obj, false, stands_out ? std::min(p_.stand_out_evidence, p_.accept_evidence) : p_.accept_evidence,
+                 stands_out);
+      }
       if (p_.template_starts)
-        for (int k = 0; k < n; ++k) consider(hyp_[static_cast<std::size_t>(k)].T_template, false);
+        for (int k = 0; k < n; ++k) consider(hyp_[static_cast<std::size_t>(k)].T_template, false, p_.accept_evidence);
     }
   }
   // The highest rank, unless it is nested in another accepted pose (choose_found_pose).
@@ -309,6 +325,7 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
     const FoundPose& f = accepted_[static_cast<std::size_t>(k)];
     s.T_candidate = f.T_cam_obj;
     s.candidate_local = f.local;
+    s.candidate_accept = f.accept;
     rep.best_evidence = f.evidence;
     rep.found = true;
   }

@@ -54,6 +54,13 @@ struct ObjectSearchParams {
   /// windows raise their thresholds, and the image confirms fewer samples of a pose in plain
   /// view. >= accept_evidence: off.
   double edge_test_evidence = 0.4;
+  /// A detector hypothesis verified only because it stands out (its edges score below
+  /// detect.verify.accept_score, but its outline parts its colours from the surroundings and no
+  /// distinct pose scores near it: detect.verify.stand_out_*; typically an object partly hidden,
+  /// whose hidden edges no image confirms) is accepted when the tracker's refinement keeps it
+  /// within confirm_translation / confirm_rotation and this share of its projected model's edge
+  /// samples is confirmed; so is the candidate it gives on the next frame (>= accept_evidence: off).
+  double stand_out_evidence = 0.4;
   /// A found pose must lie in the detector's view range (detect.views.*: elevation, in-plane
   /// turn, distance) widened by this many degrees (distance: by the ratio 1 + margin / 45),
   /// modulo the model's symmetries: an edge image can fit a turned and farther box as well as
@@ -128,6 +135,7 @@ struct FoundPose {
   double leak = -1.0;     ///< share of its outline's outside colour samples like the object's (< 0: none)
   int leak_samples = 0;   ///< colour samples of the leak
   bool local = false;     ///< a restart around the last pose (else a candidate, tag or detector pose)
+  double accept = 0.0;    ///< the evidence share it was accepted at
 };
 
 /// \brief What the choice among found poses knows of the object (see choose_found_pose).
@@ -235,6 +243,7 @@ class ObjectSearch {
     bool have_candidate = false; // accepted on the previous frame, to be confirmed
     geometry::SE3 T_candidate;
     bool candidate_local = false;  // the candidate came from a restart around the last pose
+    double candidate_accept = 0.0;  // the evidence share it was accepted at (its confirmation's)
     double radius = 0.0;         // model bounding radius, m
     Eigen::Vector3d centre = Eigen::Vector3d::Zero();
     detection::ViewRange range;  // resolved for the model and camera
