@@ -269,8 +269,8 @@ TEST(ObjectSearch, AStripePrintedOnTheBoxDoesNotKeepTheSearchFromIt) {
 TEST(ObjectSearch, APartlyHiddenObjectThatStandsOutIsFoundOnAStillImage) {
   // A third of the object hidden by the renderer's occluder: its hidden edges confirm nothing, so
   // the tracker's evidence stays under search.accept_evidence and the detector's edge score under
-  // its accept_score. The detector's stand-out verdict (its outline parts its colours from the
-  // surroundings, no distinct pose scores near it) lets the search accept it at
+  // its accept_score. The detector's colour verdicts (its colour test, its stand-out verdict: the
+  // outline parts its colours from the surroundings) let the search accept it at
   // search.stand_out_evidence, when the tracker's refinement keeps the pose. Each image is given
   // twice (a still object: found, then confirmed).
   const geometry::PinholeCamera cam = synth::default_camera();

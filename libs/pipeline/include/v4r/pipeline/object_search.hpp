@@ -54,12 +54,13 @@ struct ObjectSearchParams {
   /// windows raise their thresholds, and the image confirms fewer samples of a pose in plain
   /// view. >= accept_evidence: off.
   double edge_test_evidence = 0.4;
-  /// A detector hypothesis verified only because it stands out (its edges score below
-  /// detect.verify.accept_score, but its outline parts its colours from the surroundings and no
-  /// distinct pose scores near it: detect.verify.stand_out_*; typically an object partly hidden,
-  /// whose hidden edges no image confirms) is accepted when the tracker's refinement keeps it
-  /// within confirm_translation / confirm_rotation and this share of its projected model's edge
-  /// samples is confirmed; so is the candidate it gives on the next frame (>= accept_evidence: off).
+  /// A detector hypothesis verified by its colour (its edges score below
+  /// detect.verify.accept_score, but its outline parts its colours from the surroundings: the
+  /// colour test, detect.verify.leak_score, or the stand-out verdict, detect.verify.stand_out_*;
+  /// typically an object partly hidden, whose hidden edges no image confirms) is accepted when
+  /// the tracker's refinement keeps it within confirm_translation / confirm_rotation and this
+  /// share of its projected model's edge samples is confirmed; so is the candidate it gives on the
+  /// next frame. >= accept_evidence: off, and the detector's colour verdicts are not run.
   double stand_out_evidence = 0.4;
   /// A found pose must lie in the detector's view range (detect.views.*: elevation, in-plane
   /// turn, distance) widened by this many degrees (distance: by the ratio 1 + margin / 45),
