@@ -54,6 +54,8 @@ void add_search_params(ParamRegistry& r, ObjectSearchParams& p) {
   r.add("search.confirm_translation", &p.confirm_translation_m, 0.0, 10.0, "m",
         "a found pose is confirmed when the next frame finds it again this close");
   r.add("search.confirm_rotation", &p.confirm_rotation_deg, 0.0, 180.0, "deg", "... and within this angle");
+  r.add("search.confirm_margin", &p.confirm_margin, 0.0, 1.0, "",
+        "the next frame confirms a found pose at the evidence share it was accepted at, less this");
   r.add("search.nested_leak_margin", &p.nested_leak_margin, 0.0, 1.0, "",
         "of two poses found over the same place, one whose outline leaks the object's colours by this share more is dropped (1: off)");
   r.add("search.background", &p.background,
@@ -255,7 +257,7 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
   };
   // (1) Last frame's candidate, tracked on this frame: confirmed when it stays put.
   if (s.have_candidate) {
-    const double e = consider(s.T_candidate, s.candidate_local, s.candidate_accept);
+    const double e = consider(s.T_candidate, s.candidate_local, s.candidate_accept - p_.confirm_margin);
     const geometry::SE3 T = e >= 0.0 ? accepted_.back().T_cam_obj : s.T_candidate;  // refined
     const bool close = e >= 0.0 && (T.translation() - s.T_candidate.translation()).norm() <= p_.confirm_translation_m &&
                        geometry::rotation_angle_between(T, s.T_candidate) <= p_.confirm_rotation_deg * kDeg;
