@@ -72,8 +72,8 @@ struct ObjectSearchParams {
   double confirm_translation_m = 0.03;
   double confirm_rotation_deg = 10.0;
   /// The next frame confirms a found pose at the evidence share it was accepted at less this
-  /// margin (a hysteresis: the same pose tracked again from where it was found; one 0.7 at
-  /// acceptance fell to 0.65-0.69 at its confirmation on the same still image).
+  /// margin (a hysteresis: the same pose tracked again from where it was found; on the same still
+  /// image, poses accepted at 0.7 or more were tracked again at 0.63-0.69).
   double confirm_margin = 0.1;
   /// Of two poses accepted on one search frame over the same place (each centre within the
   /// model's bounding radius of the other's ray), one whose outline leaks the object's own
