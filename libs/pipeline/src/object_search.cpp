@@ -234,6 +234,11 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
   accepted_.clear();
   // The object's tag, if given and seen: a pose of the object must put it where it is seen.
   const detection::TagObservation tag = s.tag ? s.tag->detect(img.grey) : detection::TagObservation{};
+  // Within search.confirm_translation / confirm_rotation of another pose.
+  const auto near = [&](const geometry::SE3& T, const geometry::SE3& T_other) {
+    return (T.translation() - T_other.translation()).norm() <= p_.confirm_translation_m &&
+           geometry::rotation_angle_between(T, T_other) <= p_.confirm_rotation_deg * kDeg;
+  };
   const auto consider = [&](geometry::SE3 T, bool local, double accept, bool by_colour = false) {
     if (stop.stop_requested()) {  // shutting down: the hypotheses left are not refined
       rep.cancelled = true;
@@ -243,10 +248,7 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
     const geometry::SE3 T_start = T;
     double e = refine(object, img, stamp_s, T, accept);
     // A pose verified by its colour, accepted below the usual share: the refinement must keep it.
-    if (e >= 0.0 && by_colour && last_evidence_ < p_.accept_evidence &&
-        ((T.translation() - T_start.translation()).norm() > p_.confirm_translation_m ||
-         geometry::rotation_angle_between(T, T_start) > p_.confirm_rotation_deg * kDeg))
-      e = -1.0;
+    if (e >= 0.0 && by_colour && last_evidence_ < p_.accept_evidence && !near(T, T_start)) e = -1.0;
     if (e >= 0.0 && tag.found && s.tag->corner_offset_px(tag, T) > p_.tag.max_offset_px) {
       e = -1.0;
       ++rep.tag_vetoed;
@@ -259,8 +261,7 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
   if (s.have_candidate) {
     const double e = consider(s.T_candidate, s.candidate_local, s.candidate_accept - p_.confirm_margin);
     const geometry::SE3 T = e >= 0.0 ? accepted_.back().T_cam_obj : s.T_candidate;  // refined
-    const bool close = e >= 0.0 && (T.translation() - s.T_candidate.translation()).norm() <= p_.confirm_translation_m &&
-                       geometry::rotation_angle_between(T, s.T_candidate) <= p_.confirm_rotation_deg * kDeg;
+    const bool close = e >= 0.0 && near(T, s.T_candidate);
     if (close) {
       // A symmetric object is reported in the equivalent pose nearest to where it was last seen.
       T_cam_found = s.have_last ? detection::nearest_symmetric(T, s.T_last, s.symmetries) : T;
