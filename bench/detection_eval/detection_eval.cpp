@@ -287,6 +287,7 @@ struct SearchOutcome {
   geometry::SE3 T_cam_obj;   ///< its pose then
   double ms = 0.0;           ///< the two frames' cycle and search time
   pipeline::SearchReport first;  ///< what the search did on the first frame (diagnosis)
+  pipeline::SearchReport second;  ///< and on the second
 };
 
 SearchOutcome search_still(const std::shared_ptr<const model::Model>& m, const std::shared_ptr<const TemplateSet>& set,
@@ -301,7 +302,7 @@ SearchOutcome search_still(const std::shared_ptr<const model::Model>& m, const s
   for (int frame = 0; frame < 2; ++frame) {
     fr = tracker.track(io::as_view(grey), io::as_colour_view(bgr));
     out.ms += fr.cycle_ms;
-    if (frame == 0) out.first = fr.search;
+    (frame == 0 ? out.first : out.second) = fr.search;
   }
   out.locked = fr.report.status == scene::TrackStatus::kTracking;
   out.T_cam_obj = fr.T_cam_obj;
@@ -491,9 +492,10 @@ int main(int argc, char** argv) {
             const DetectionResult r = det.detect(io::as_colour_view(img), hyp);
             const PoseError e = r.hypotheses > 0 ? symmetric_pose_error(hyp[0].T_cam_obj, T, sym) : PoseError{};
             fmt::print(stderr,
-                       "{} #{}: {}; first frame: tried {} found {} evidence {:.2f}; detector: verified {} best score {:.2f} "
-                       "({:.3f} m {:.1f} deg)\n",
+                       "{} #{}: {}; first frame: tried {} found {} evidence {:.2f}; second: tried {} found {} evidence "
+                       "{:.2f}; detector: verified {} best score {:.2f} ({:.3f} m {:.1f} deg)\n",
                        scenes::scene_name(scenes[si]), k, outcome, so.first.tried, so.first.found, so.first.best_evidence,
+                       so.second.tried, so.second.found, so.second.best_evidence,
                        r.verified, r.hypotheses > 0 ? hyp[0].verification.score : 0.0, e.translation, e.rotation * 57.2958);
           }
           continue;
