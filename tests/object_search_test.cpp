@@ -61,18 +61,18 @@ void append_empty(std::vector<Frame>& seq, const model::Model& m, const synth::R
   }
 }
 
-/// A test object (test::kObjects) and its templates for `dp` (null pointers on failure).
+/// A test object (test::kObjects, or "section": the ship section) and its templates for `dp` (null pointers on failure).
 struct ModelWithTemplates {
   std::shared_ptr<const model::Model> model;
   std::shared_ptr<const detection::TemplateSet> templates;
 };
 ModelWithTemplates object_with_templates(const std::string& name, const geometry::PinholeCamera& cam,
                                          const detection::DetectorParams& dp) {
-  const test::ObjectCase* oc = nullptr;
+  std::string (*cao)() = name == "section" ? &synth::ship_section_cao : nullptr;
   for (const auto& o : test::kObjects)
-    if (name == o.name) oc = &o;
-  if (oc == nullptr) return {};
-  auto parsed = model::parse_cao(oc->cao(), name);
+    if (name == o.name) cao = o.cao;
+  if (cao == nullptr) return {};
+  auto parsed = model::parse_cao(cao(), name);
   if (!parsed) return {};
   auto model = std::make_shared<const model::Model>(std::move(*parsed));
   auto ts = detection::build_templates(*model, cam, dp);
@@ -307,4 +307,39 @@ TEST(ObjectSearch, APartlyHiddenObjectThatStandsOutIsFoundOnAStillImage) {
   EXPECT_GE(found[1], found[0] + images / 5);
   EXPECT_GE(found[1], images * 2 / 3);
   EXPECT_LE(wrong[1], wrong[0] + 1);
+}
+
+TEST(ObjectSearch, TheSectionIsNotFoundTurnedHalfRound) {
+  // The ship section turned half round about its plate's normal is its near-symmetric twin: the
+  // walls swap places, 12 and 10 cm high. The tracker's evidence hardly tells the two apart, and
+  // without the detector's twin test on its chosen pose the search confirmed the twin on 4 of these
+  // 22 noisy renders (the detection evaluation's noise scenes), where the detector alone is right.
+  const geometry::PinholeCamera cam = synth::default_camera();
+  const detection::DetectorParams dp;  // default view range
+  const auto [model, templates] = object_with_templates("section", cam, dp);
+  ASSERT_TRUE(model && templates);
+  const auto sym = detection::model_symmetries(*model);
+  std::mt19937 rng(1000u + 3u * 77u);  // the detection evaluation's noise scenes
+  int found = 0, twins = 0, wrong = 0;
+  constexpr int kImages = 22;
+  for (std::uint32_t k = 0; k < kImages; ++k) {
+    const geometry::SE3 T = sc::random_pose(*model, dp.views, cam, rng);
+    const cv::Mat img = sc::render_scene(*model, T, cam, sc::Scene::kNoise, 100u + k);
+    cv::Mat grey;
+    cv::cvtColor(img, grey, cv::COLOR_BGR2GRAY);
+    pipeline::SingleObjectTracker tracker(model, cam);
+    tracker.enable_search(templates, pipeline::ObjectSearchParams{}, dp);
+    tracker.start_search();
+    pipeline::FrameResult fr;
+    for (int rep = 0; rep < 2; ++rep) fr = tracker.track(io::as_view(grey), io::as_colour_view(img));
+    if (fr.report.status != scene::TrackStatus::kTracking) continue;
+    const auto e = detection::symmetric_pose_error(fr.T_cam_obj, T, sym);
+    if (e.translation <= 0.05 && e.rotation <= 5.0 * kDeg) ++found;
+    else if (e.rotation >= 170.0 * kDeg) ++twins;
+    else ++wrong;
+  }
+  std::printf("[section, noise] %d images: found %d, %d twins, %d other wrong\n", kImages, found, twins, wrong);
+  EXPECT_LE(twins, 1);
+  EXPECT_GE(found, kImages - 2);
+  EXPECT_LE(wrong, 1);
 }

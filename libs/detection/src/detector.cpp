@@ -78,6 +78,16 @@ bool Detector::set_image(const image::ImageView& grey) { return pyramid_.compute
 Verification Detector::verify(const geometry::SE3& T) { return aligner_.verify(pyramid_, T); }
 int Detector::refine(geometry::SE3& T) { return aligner_.refine(pyramid_, T); }
 int Detector::polish(geometry::SE3& T) { return aligner_.polish(pyramid_, T); }
+bool Detector::prefer_twin(geometry::SE3& T) {
+  if (!(p_.verify.twin_margin > 0.0)) return false;
+  for (const geometry::SE3& S : near_symmetries_) {
+    geometry::SE3 twin;
+    if (twin_verdict(T, S, twin) >= 0) continue;
+    T = twin;
+    return true;
+  }
+  return false;
+}
 
 DetectionResult Detector::detect(const image::ColourView& bgr, std::span<Hypothesis> out) {
   const auto t0 = Clock::now();
@@ -500,13 +510,8 @@ void Detector::resolve_twins() {
 }
 
 void Detector::prefer_twin(Hypothesis& h) {
-  if (!(p_.verify.twin_margin > 0.0)) return;
-  for (const geometry::SE3& S : near_symmetries_) {
-    geometry::SE3 twin;
-    if (twin_verdict(h.T_cam_obj, S, twin) >= 0) continue;
-    move_hypothesis(h, twin, aligner_.verify(pyramid_, twin));
-    return;
-  }
+  geometry::SE3 T = h.T_cam_obj;
+  if (prefer_twin(T)) move_hypothesis(h, T, aligner_.verify(pyramid_, T));
 }
 
 void Detector::move_hypothesis(Hypothesis& h, const geometry::SE3& T, const Verification& v) {

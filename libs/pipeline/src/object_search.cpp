@@ -188,13 +188,17 @@ double ObjectSearch::refine(std::size_t object, const CameraImage& img, double s
   return ok ? rank : -1.0;
 }
 
-bool ObjectSearch::edge_test(Slot& s, const CameraImage& img, const geometry::SE3& T) {
-  if (!s.detector) return false;
+bool ObjectSearch::gradients_for(Slot& s, const CameraImage& img) {
   if (gradients_id_ != search_frame_id_) {
     const bool ok = img.colour.empty() ? s.detector->set_image(img.grey) : s.detector->set_image(img.colour);
     if (!ok) return false;
     gradients_id_ = search_frame_id_;
   }
+  return true;
+}
+
+bool ObjectSearch::edge_test(Slot& s, const CameraImage& img, const geometry::SE3& T) {
+  if (!s.detector || !gradients_for(s, img)) return false;
   const detection::Verification v = s.detector->verify(T);
   const detection::VerifyParams& vp = s.detector->params().verify;
   return v.samples >= vp.min_samples && v.score >= vp.accept_score;
@@ -331,6 +335,9 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
   if (s.have_candidate) {
     const FoundPose& f = accepted_[static_cast<std::size_t>(k)];
     s.T_candidate = f.T_cam_obj;
+    // The tracker's evidence hardly tells a near-symmetric twin (the section turned half round,
+    // its walls' heights swapped) from the pose: the detector's twin test does.
+    if (s.detector && s.detector->has_twins() && gradients_for(s, img)) s.detector->prefer_twin(s.T_candidate);
     s.candidate_local = f.local;
     s.candidate_accept = f.accept;
     rep.best_evidence = f.evidence;

@@ -101,6 +101,12 @@ class Detector {
   /// verified pose): all edge samples, edges placed to a fraction of a pixel
   /// (detect.verify.polish_*); returns the iterations that moved it.
   int polish(geometry::SE3& T_cam_obj);
+  /// The twin test (detect.verify.twin_margin) of a pose on the last image: when it places one of
+  /// the model's near-symmetric twins of the pose (a turn that maps the model onto itself but for
+  /// a few edges) better, the pose moves to that twin. Returns whether it moved.
+  bool prefer_twin(geometry::SE3& T_cam_obj);
+  /// Whether the model has near-symmetric twins (detect.verify.near_symmetry).
+  [[nodiscard]] bool has_twins() const { return !near_symmetries_.empty(); }
 
   [[nodiscard]] const DetectorParams& params() const { return p_; }
   /// The gradients of the last image (for display and diagnosis).

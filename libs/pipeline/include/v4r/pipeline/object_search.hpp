@@ -271,8 +271,10 @@ class ObjectSearch {
   std::vector<Slot> slots_;
   std::vector<SearchReport> reports_;
   std::vector<detection::Hypothesis> hyp_;
-  /// The detector's edge test of a refined pose on this search frame's image (its gradients
-  /// computed once per frame, when first needed).
+  /// The detector's gradients of this search frame's image, computed once per frame when first
+  /// needed (false: the detector refused the image).
+  bool gradients_for(Slot& s, const CameraImage& img);
+  /// The detector's edge test of a refined pose on this search frame's image.
   bool edge_test(Slot& s, const CameraImage& img, const geometry::SE3& T);
   std::uint64_t search_frame_id_ = 0;  // search_frame calls so far
   std::uint64_t gradients_id_ = 0;     // the call whose image the detector's gradients are of (0: none)
