@@ -61,7 +61,8 @@ void append_empty(std::vector<Frame>& seq, const model::Model& m, const synth::R
   }
 }
 
-/// A test object (test::kObjects, or "section": the ship section) and its templates for `dp` (null pointers on failure).
+/// A test object (test::kObjects, or "section": the ship section) and its templates for `dp`
+/// (null pointers on failure).
 struct ModelWithTemplates {
   std::shared_ptr<const model::Model> model;
   std::shared_ptr<const detection::TemplateSet> templates;

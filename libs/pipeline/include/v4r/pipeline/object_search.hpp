@@ -187,7 +187,9 @@ void set_found_pose(scene::Scene& scene, std::size_t object, const geometry::SE3
 /// VisionCycle run refine_cycles times on it: features not found yet are searched in the wide
 /// window, then tracked in the normal one) and accepted by the cycle's own status test: the
 /// share of the whole projected model's edge samples that the image confirms
-/// (features::EdgeEvidence; the detector's own verification score is not used). An accepted
+/// (features::EdgeEvidence; the detector's own verification score is not used). The highest
+/// ranked (choose_found_pose) is put to the detector's twin test when the model has
+/// near-symmetric twins (Detector::prefer_twin: that evidence hardly tells them apart). An accepted
 /// pose confirmed on the next frame (consistency over 2 frames) is set on the scene object,
 /// which is `tracking` from then on. Set-up allocates; update() throws nothing and allocates
 /// nothing, except in the tag detection of (2) (libapriltag, on search frames only). Not thread-safe.
