@@ -80,6 +80,21 @@ ModelWithTemplates object_with_templates(const std::string& name, const geometry
   if (!ts) return {};
   return {model, std::make_shared<const detection::TemplateSet>(std::move(*ts))};
 }
+/// `v4r track` without a pose on a still object: the search given the same colour image twice
+/// (found on the first frame, confirmed on the second); the second frame's result.
+pipeline::FrameResult search_still_image(const std::shared_ptr<const model::Model>& model,
+                                         const std::shared_ptr<const detection::TemplateSet>& templates,
+                                         const geometry::PinholeCamera& cam, const pipeline::ObjectSearchParams& sp,
+                                         const detection::DetectorParams& dp, const cv::Mat& bgr) {
+  cv::Mat grey;
+  cv::cvtColor(bgr, grey, cv::COLOR_BGR2GRAY);
+  pipeline::SingleObjectTracker tracker(model, cam);
+  tracker.enable_search(templates, sp, dp);
+  tracker.start_search();
+  pipeline::FrameResult fr;
+  for (int rep = 0; rep < 2; ++rep) fr = tracker.track(io::as_view(grey), io::as_colour_view(bgr));
+  return fr;
+}
 ModelWithTemplates box_with_templates(const geometry::PinholeCamera& cam, const detection::DetectorParams& dp) {
   return object_with_templates("box", cam, dp);
 }
@@ -285,17 +300,11 @@ TEST(ObjectSearch, APartlyHiddenObjectThatStandsOutIsFoundOnAStillImage) {
     for (std::uint32_t k = 0; k < 12; ++k) {
       const geometry::SE3 T = sc::random_pose(*model, dp.views, cam, rng);
       const cv::Mat img = sc::render_scene(*model, T, cam, sc::Scene::kOcclusion, 100u + k);
-      cv::Mat grey;
-      cv::cvtColor(img, grey, cv::COLOR_BGR2GRAY);
       ++images;
       for (int on = 0; on < 2; ++on) {
         pipeline::ObjectSearchParams sp;
         if (on == 0) sp.stand_out_evidence = 1.0;  // off
-        pipeline::SingleObjectTracker tracker(model, cam);
-        tracker.enable_search(templates, sp, dp);
-        tracker.start_search();
-        pipeline::FrameResult fr;
-        for (int rep = 0; rep < 2; ++rep) fr = tracker.track(io::as_view(grey), io::as_colour_view(img));
+        const pipeline::FrameResult fr = search_still_image(model, templates, cam, sp, dp, img);
         if (fr.report.status != scene::TrackStatus::kTracking) continue;
         const auto e = detection::symmetric_pose_error(fr.T_cam_obj, T, sym);
         if (e.translation <= 0.05 && e.rotation <= 5.0 * kDeg) ++found[on];
@@ -326,13 +335,7 @@ TEST(ObjectSearch, TheSectionIsNotFoundTurnedHalfRound) {
   for (std::uint32_t k = 0; k < kImages; ++k) {
     const geometry::SE3 T = sc::random_pose(*model, dp.views, cam, rng);
     const cv::Mat img = sc::render_scene(*model, T, cam, sc::Scene::kNoise, 100u + k);
-    cv::Mat grey;
-    cv::cvtColor(img, grey, cv::COLOR_BGR2GRAY);
-    pipeline::SingleObjectTracker tracker(model, cam);
-    tracker.enable_search(templates, pipeline::ObjectSearchParams{}, dp);
-    tracker.start_search();
-    pipeline::FrameResult fr;
-    for (int rep = 0; rep < 2; ++rep) fr = tracker.track(io::as_view(grey), io::as_colour_view(img));
+    const pipeline::FrameResult fr = search_still_image(model, templates, cam, {}, dp, img);
     if (fr.report.status != scene::TrackStatus::kTracking) continue;
     const auto e = detection::symmetric_pose_error(fr.T_cam_obj, T, sym);
     if (e.translation <= 0.05 && e.rotation <= 5.0 * kDeg) ++found;
