@@ -474,6 +474,13 @@ int main(int argc, char** argv) {
       std::mt19937 rng(1000u + static_cast<unsigned>(si) * 77u);
       int ok = 0, wrong = 0;
       std::vector<double> ms, grad_ms, search_ms, refine_ms;
+      // A found pose against the truth T: counted right (within the bounds) or wrong.
+      const auto judge = [&](const geometry::SE3& T_found, const geometry::SE3& T, PoseError& e) {
+        e = symmetric_pose_error(T_found, T, sym);
+        const bool right = within_bounds(e);
+        ++(right ? ok : wrong);
+        return right ? "right" : "wrong";
+      };
       for (int k = 0; k < images; ++k) {
         const geometry::SE3 T = scenes::random_pose(*m, params.views, cam, rng);
         const cv::Mat img = scenes::render_scene(*m, T, cam, scenes[si], 100u + static_cast<unsigned>(k));
@@ -483,10 +490,8 @@ int main(int argc, char** argv) {
           all_ms.push_back(so.ms);
           const char* outcome = "none locked";
           if (so.locked) {
-            const PoseError e = symmetric_pose_error(so.T_cam_obj, T, sym);
-            outcome = within_bounds(e) ? "right" : "wrong";
-            if (within_bounds(e)) ++ok;
-            else ++wrong;
+            PoseError e;
+            outcome = judge(so.T_cam_obj, T, e);
             if (std::getenv("V4R_EVAL_DEBUG"))
               fmt::print(stderr, "{} #{}: {} ({:.3f} m {:.1f} deg)\n", scenes::scene_name(scenes[si]), k, outcome, e.translation,
                          e.rotation * 57.2958);
@@ -513,10 +518,8 @@ int main(int argc, char** argv) {
           diagnose(det, *set, *m, params, cam, T, sym, r, hyp, img, fmt::format("{} #{}", scenes::scene_name(scenes[si]), k));
         const char* outcome = "none verified";
         if (r.verified > 0) {
-          const PoseError e = symmetric_pose_error(hyp[0].T_cam_obj, T, sym);
-          outcome = within_bounds(e) ? "right" : "wrong";
-          if (within_bounds(e)) ++ok;
-          else ++wrong;
+          PoseError e;
+          outcome = judge(hyp[0].T_cam_obj, T, e);
         }
         if (std::getenv("V4R_EVAL_DEBUG")) fmt::print(stderr, "   result: {}\n", outcome);
       }
