@@ -56,6 +56,12 @@ void add_search_params(ParamRegistry& r, ObjectSearchParams& p) {
   r.add("search.confirm_rotation", &p.confirm_rotation_deg, 0.0, 180.0, "deg", "... and within this angle");
   r.add("search.confirm_margin", &p.confirm_margin, 0.0, 1.0, "",
         "the next frame confirms a found pose at the evidence share it was accepted at, less this");
+  r.add("search.confirm_degraded", &p.confirm_degraded, 0.0, 1.0, "",
+        "a confirmation reported degraded still confirms within this share of the confirm limits, at the share the pose was "
+        "accepted at (0: off)");
+  r.add("search.refound_factor", &p.refound_factor, 0.0, 10.0, "",
+        "a found pose tracked beyond the confirm limits but within this factor of them, to no better support, is confirmed "
+        "when the frame's own search finds it again within the limits (<= 1: off)");
   r.add("search.nested_leak_margin", &p.nested_leak_margin, 0.0, 1.0, "",
         "of two poses found over the same place, one whose outline leaks the object's colours by this share more is dropped (1: off)");
   r.add("search.background", &p.background,
@@ -168,7 +174,9 @@ double ObjectSearch::refine(std::size_t object, const CameraImage& img, double s
   const StatusParams& sp = probe_.params().status;
   const bool leaks = slot.leak_typical >= 0.0 && slot.leak_typical <= sp.leak_max_typical && o.leak_samples >= sp.leak_min_samples && sp.leak_margin < 1.0 &&
                      o.leak > slot.leak_typical + sp.leak_margin && over_place(slot, o.T_ref_obj, slot.T_leak);
-  const bool tracked = o.status == scene::TrackStatus::kTracking && !leaks && in_view_range(slot, o.T_ref_obj);
+  last_degraded_ = o.status == scene::TrackStatus::kDegraded;
+  const bool tracked = (o.status == scene::TrackStatus::kTracking || (allow_degraded_ && last_degraded_)) && !leaks &&
+                       in_view_range(slot, o.T_ref_obj);
   const bool ok = tracked && (o.evidence >= accept_evidence ||
                               (o.evidence >= p_.edge_test_evidence && edge_test(slots_[object], img, o.T_ref_obj)));
   // Rank: edge samples confirmed, times the square of their share, weighed down by the pose
@@ -238,10 +246,10 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
   accepted_.clear();
   // The object's tag, if given and seen: a pose of the object must put it where it is seen.
   const detection::TagObservation tag = s.tag ? s.tag->detect(img.grey) : detection::TagObservation{};
-  // Within search.confirm_translation / confirm_rotation of another pose.
-  const auto near = [&](const geometry::SE3& T, const geometry::SE3& T_other) {
-    return (T.translation() - T_other.translation()).norm() <= p_.confirm_translation_m &&
-           geometry::rotation_angle_between(T, T_other) <= p_.confirm_rotation_deg * kDeg;
+  // Within `factor` times the confirm limits of a pose.
+  const auto within = [&](const geometry::SE3& T, const geometry::SE3& T_other, double factor) {
+    return (T.translation() - T_other.translation()).norm() <= factor * p_.confirm_translation_m &&
+           geometry::rotation_angle_between(T, T_other) <= factor * p_.confirm_rotation_deg * kDeg;
   };
   const auto consider = [&](geometry::SE3 T, bool local, double accept, bool by_colour = false) {
     if (stop.stop_requested()) {  // shutting down: the hypotheses left are not refined
@@ -252,7 +260,7 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
     const geometry::SE3 T_start = T;
     double e = refine(object, img, stamp_s, T, accept);
     // A pose verified by its colour, accepted below the usual share: the refinement must keep it.
-    if (e >= 0.0 && by_colour && last_evidence_ < p_.accept_evidence && !near(T, T_start)) e = -1.0;
+    if (e >= 0.0 && by_colour && last_evidence_ < p_.accept_evidence && !within(T, T_start, 1.0)) e = -1.0;
     if (e >= 0.0 && tag.found && s.tag->corner_offset_px(tag, T) > p_.tag.max_offset_px) {
       e = -1.0;
       ++rep.tag_vetoed;
@@ -261,24 +269,41 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
       accepted_.push_back({T, e, last_evidence_, last_leak_, last_leak_samples_, local, accept});
     return e;
   };
+  // A pose confirmed: the object is `tracking` there from this frame on.
+  const auto lock = [&](const geometry::SE3& T, double evidence) {
+    // A symmetric object is reported in the equivalent pose nearest to where it was last seen.
+    T_cam_found = s.have_last ? detection::nearest_symmetric(T, s.T_last, s.symmetries) : T;
+    s.have_candidate = false;
+    s.have_last = true;
+    s.T_last = T_cam_found;
+    s.stamp_last = -1.0;
+    s.search_frames = 0;
+    rep.found = rep.locked = true;
+    rep.best_evidence = evidence;
+  };
   // (1) Last frame's candidate, tracked on this frame: confirmed when it stays put.
+  bool refound = false;  // ... or when this frame's search finds it again (see refound_factor)
+  geometry::SE3 T_last_candidate;
   if (s.have_candidate) {
-    const double e = consider(s.T_candidate, s.candidate_local, s.candidate_accept - p_.confirm_margin);
+    allow_degraded_ = p_.confirm_degraded > 0.0;
+    double e = consider(s.T_candidate, s.candidate_local, s.candidate_accept - p_.confirm_margin);
+    allow_degraded_ = false;
     const geometry::SE3 T = e >= 0.0 ? accepted_.back().T_cam_obj : s.T_candidate;  // refined
-    const bool close = e >= 0.0 && near(T, s.T_candidate);
-    if (close) {
-      // A symmetric object is reported in the equivalent pose nearest to where it was last seen.
-      T_cam_found = s.have_last ? detection::nearest_symmetric(T, s.T_last, s.symmetries) : T;
-      s.have_candidate = false;
-      s.have_last = true;
-      s.T_last = T_cam_found;
-      s.stamp_last = -1.0;
-      s.search_frames = 0;
-      rep.found = rep.locked = true;
-      rep.best_evidence = accepted_.back().evidence;
+    // A `degraded` confirmation: closer, and at the share the pose was accepted at; else it is no
+    // found pose of this frame.
+    if (e >= 0.0 && last_degraded_ &&
+        (last_evidence_ < s.candidate_accept || !within(T, s.T_candidate, p_.confirm_degraded))) {
+      e = -1.0;
+      accepted_.pop_back();
+    }
+    if (e >= 0.0 && within(T, s.T_candidate, 1.0)) {
+      lock(T, accepted_.back().evidence);
       rep.search_ms = ms_between(t0, Clock::now());
       return rep;
     }
+    refound = e >= 0.0 && p_.refound_factor > 1.0 && last_evidence_ <= s.candidate_evidence &&
+              within(T, s.T_candidate, p_.refound_factor);
+    T_last_candidate = s.T_candidate;
   }
   // (2) The AprilTag on the object, if given: both poses of the square. One accepted makes the
   // restarts and the whole-image detector unnecessary on this frame.
@@ -340,8 +365,10 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
     if (s.detector && s.detector->has_twins() && gradients_for(s, img)) s.detector->prefer_twin(s.T_candidate);
     s.candidate_local = f.local;
     s.candidate_accept = f.accept;
+    s.candidate_evidence = f.evidence;
     rep.best_evidence = f.evidence;
     rep.found = true;
+    if (refound && within(s.T_candidate, T_last_candidate, 1.0)) lock(s.T_candidate, f.evidence);
   }
   rep.cancelled = rep.cancelled || stop.stop_requested();
   rep.search_ms = ms_between(t0, Clock::now());

@@ -75,6 +75,17 @@ struct ObjectSearchParams {
   /// margin (a hysteresis: the same pose tracked again from where it was found; on the same still
   /// image, poses accepted at 0.7 or more were tracked again at 0.63-0.69).
   double confirm_margin = 0.1;
+  /// The next frame's tracking may report a found pose `degraded` (fewer than half its features
+  /// used: a blurred thin plate, whose close edge pairs the windows drop) and still confirm it,
+  /// when it keeps the pose within this share of confirm_translation and confirm_rotation and the
+  /// image confirms at least the share the pose was accepted at, without the margin (0: off).
+  double confirm_degraded = 0.3;
+  /// Two frames' searches that agree confirm a pose: when the next frame tracks the found pose
+  /// beyond the confirm limits but within this factor of them, to a pose the image supports no
+  /// better than the found one (the tracker sliding along a direction blur leaves weak, not to a
+  /// better fit), and that frame's own search finds the same pose again within the limits, the
+  /// pose is confirmed (<= 1: off).
+  double refound_factor = 2.0;
   /// Of two poses accepted on one search frame over the same place (each centre within the
   /// model's bounding radius of the other's ray), one whose outline leaks the object's own
   /// colours (features::SilhouetteContrast) by this share more than the other's is dropped: its
@@ -190,8 +201,9 @@ void set_found_pose(scene::Scene& scene, std::size_t object, const geometry::SE3
 /// (features::EdgeEvidence; the detector's own verification score is not used). The highest
 /// ranked (choose_found_pose) is put to the detector's twin test when the model has
 /// near-symmetric twins (Detector::prefer_twin: that evidence hardly tells them apart). An accepted
-/// pose confirmed on the next frame (consistency over 2 frames) is set on the scene object,
-/// which is `tracking` from then on. Set-up allocates; update() throws nothing and allocates
+/// pose confirmed on the next frame (consistency over 2 frames: tracked there within the confirm
+/// limits, or tracked near them and found again by that frame's search) is set on the scene
+/// object, which is `tracking` from then on. Set-up allocates; update() throws nothing and allocates
 /// nothing, except in the tag detection of (2) (libapriltag, on search frames only). Not thread-safe.
 class ObjectSearch {
  public:
@@ -251,6 +263,7 @@ class ObjectSearch {
     geometry::SE3 T_candidate;
     bool candidate_local = false;  // the candidate came from a restart around the last pose
     double candidate_accept = 0.0;  // the evidence share it was accepted at (its confirmation's)
+    double candidate_evidence = 0.0;  // its evidence share when found
     double radius = 0.0;         // model bounding radius, m
     Eigen::Vector3d centre = Eigen::Vector3d::Zero();
     detection::ViewRange range;  // resolved for the model and camera
@@ -281,6 +294,8 @@ class ObjectSearch {
   std::uint64_t search_frame_id_ = 0;  // search_frame calls so far
   std::uint64_t gradients_id_ = 0;     // the call whose image the detector's gradients are of (0: none)
   double last_evidence_ = 0.0;
+  bool allow_degraded_ = false;   // refine() takes a `degraded` status as tracked (a confirmation)
+  bool last_degraded_ = false;    // the last refined pose was reported `degraded`
   double last_leak_ = -1.0;       // the last refined pose's silhouette leak (-1: no colour samples)
   int last_leak_samples_ = 0;
   std::vector<FoundPose> accepted_;  // this frame's accepted poses (capacity fixed at construction)
