@@ -62,6 +62,8 @@ void add_search_params(ParamRegistry& r, ObjectSearchParams& p) {
   r.add("search.refound_factor", &p.refound_factor, 0.0, 10.0, "",
         "a found pose tracked beyond the confirm limits but within this factor of them, to no better support, is confirmed "
         "when the frame's own search finds it again within the limits (<= 1: off)");
+  r.add("search.rank_evidence_power", &p.rank_evidence_power, 0.0, 10.0, "",
+        "found poses are ranked by their confirmed edge samples times their evidence share to this power");
   r.add("search.nested_leak_margin", &p.nested_leak_margin, 0.0, 1.0, "",
         "of two poses found over the same place, one whose outline leaks the object's colours by this share more is dropped (1: off)");
   r.add("search.background", &p.background,
@@ -179,15 +181,16 @@ double ObjectSearch::refine(std::size_t object, const CameraImage& img, double s
                        in_view_range(slot, o.T_ref_obj);
   const bool ok = tracked && (o.evidence >= accept_evidence ||
                               (o.evidence >= p_.edge_test_evidence && edge_test(slots_[object], img, o.T_ref_obj)));
-  // Rank: edge samples confirmed, times the square of their share, weighed down by the pose
-  // solve's RMS residual as the cycle's quality is (1 / (1 + (rms / 1.5 px)^2)). An edge image
-  // can be fitted by more than one pose of a box (a Necker-like reversal: turned and farther, its
-  // projected edges on the image's edges and on texture): the false one explains as many samples
-  // or more, but leaves more of its own unconfirmed or fits them only to a pixel or so.
+  // Rank: edge samples confirmed, times their share to the power rank_evidence_power, weighed
+  // down by the pose solve's RMS residual as the cycle's quality is (1 / (1 + (rms / 1.5 px)^2)).
+  // An edge image can be fitted by more than one pose of a box (a Necker-like reversal: turned
+  // and farther, its projected edges on the image's edges and on texture): the false one explains
+  // as many samples or more, but leaves more of its own unconfirmed or fits them only to a pixel
+  // or so. A pose fitted to clutter, larger than the object, may also explain more samples.
   int matched = 0;
   for (const scene::View& v : o.views) matched += v.evidence_matched;
   const double rms = probe_.last_report().objects[object].rms_px;
-  const double rank = matched * o.evidence * o.evidence / (1.0 + (rms / 1.5) * (rms / 1.5));
+  const double rank = matched * std::pow(o.evidence, p_.rank_evidence_power) / (1.0 + (rms / 1.5) * (rms / 1.5));
   last_evidence_ = o.evidence;
   last_leak_ = o.leak;
   last_leak_samples_ = o.leak_samples;
