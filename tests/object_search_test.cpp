@@ -4,10 +4,12 @@
 // pipeline::ObjectSearch) must lock by frame 10, be `tracking` again within 5 frames of the
 // return in >= 95 % of the events, and never say `tracking` on a frame without the object.
 #include <algorithm>
+#include <array>
 #include <cstdio>
 #include <cstdlib>
 #include <memory>
 #include <random>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -97,6 +99,38 @@ pipeline::FrameResult search_still_image(const std::shared_ptr<const model::Mode
 }
 ModelWithTemplates box_with_templates(const geometry::PinholeCamera& cam, const detection::DetectorParams& dp) {
   return object_with_templates("box", cam, dp);
+}
+
+/// What the search made of still images under each of several settings.
+struct StillTally {
+  int found = 0;  ///< `tracking` within 5 cm / 5 deg of the truth (modulo the symmetries)
+  int twins = 0;  ///< `tracking` turned 170 deg or more from it (a near-symmetric twin)
+  int wrong = 0;  ///< `tracking` elsewhere
+};
+/// The detection evaluation's first `images` renders of test object `name` under scene `s` (its
+/// random poses, seeds and default view range), each given to search_still_image once per setting
+/// in `sp`; one tally per setting, in `tally` (same size). False when the object cannot be built.
+bool search_evaluation_renders(const std::string& name, sc::Scene s, int images,
+                               std::span<const pipeline::ObjectSearchParams> sp, std::span<StillTally> tally) {
+  const geometry::PinholeCamera cam = synth::default_camera();
+  const detection::DetectorParams dp;  // default view range
+  const auto [model, templates] = object_with_templates(name, cam, dp);
+  if (!model || !templates) return false;
+  const auto sym = detection::model_symmetries(*model);
+  std::mt19937 rng(1000u + static_cast<std::uint32_t>(s) * 77u);  // as the evaluation seeds each scene
+  for (int k = 0; k < images; ++k) {
+    const geometry::SE3 T = sc::random_pose(*model, dp.views, cam, rng);
+    const cv::Mat img = sc::render_scene(*model, T, cam, s, 100u + static_cast<std::uint32_t>(k));
+    for (std::size_t i = 0; i < sp.size(); ++i) {
+      const pipeline::FrameResult fr = search_still_image(model, templates, cam, sp[i], dp, img);
+      if (fr.report.status != scene::TrackStatus::kTracking) continue;
+      const auto e = detection::symmetric_pose_error(fr.T_cam_obj, T, sym);
+      if (e.translation <= 0.05 && e.rotation <= 5.0 * kDeg) ++tally[i].found;
+      else if (e.rotation >= 170.0 * kDeg) ++tally[i].twins;
+      else ++tally[i].wrong;
+    }
+  }
+  return true;
 }
 
 }  // namespace
@@ -289,34 +323,18 @@ TEST(ObjectSearch, APartlyHiddenObjectThatStandsOutIsFoundOnAStillImage) {
   // outline parts its colours from the surroundings) let the search accept it at
   // search.stand_out_evidence, when the tracker's refinement keeps the pose. Each image is given
   // twice (a still object: found, then confirmed).
-  const geometry::PinholeCamera cam = synth::default_camera();
-  const detection::DetectorParams dp;  // default view range
-  int found[2] = {0, 0}, wrong[2] = {0, 0}, images = 0;  // [0]: stand-out evidence off, [1]: on
-  for (const char* name : {"ship", "flange"}) {
-    const auto [model, templates] = object_with_templates(name, cam, dp);
-    ASSERT_TRUE(model && templates) << name;
-    const auto sym = detection::model_symmetries(*model);
-    std::mt19937 rng(1000u + 5u * 77u);  // the detection evaluation's occluded scenes
-    for (std::uint32_t k = 0; k < 12; ++k) {
-      const geometry::SE3 T = sc::random_pose(*model, dp.views, cam, rng);
-      const cv::Mat img = sc::render_scene(*model, T, cam, sc::Scene::kOcclusion, 100u + k);
-      ++images;
-      for (int on = 0; on < 2; ++on) {
-        pipeline::ObjectSearchParams sp;
-        if (on == 0) sp.stand_out_evidence = 1.0;  // off
-        const pipeline::FrameResult fr = search_still_image(model, templates, cam, sp, dp, img);
-        if (fr.report.status != scene::TrackStatus::kTracking) continue;
-        const auto e = detection::symmetric_pose_error(fr.T_cam_obj, T, sym);
-        if (e.translation <= 0.05 && e.rotation <= 5.0 * kDeg) ++found[on];
-        else ++wrong[on];
-      }
-    }
-  }
+  std::array<pipeline::ObjectSearchParams, 2> sp;  // [0]: stand-out evidence off, [1]: on
+  sp[0].stand_out_evidence = 1.0;
+  std::array<StillTally, 2> t;
+  constexpr int kImages = 12;
+  for (const char* name : {"ship", "flange"})
+    ASSERT_TRUE(search_evaluation_renders(name, sc::Scene::kOcclusion, kImages, sp, t)) << name;
+  const int images = 2 * kImages;
   std::printf("[occluded] %d images: found %d (%d wrong) without the stand-out evidence, %d (%d wrong) with\n", images,
-              found[0], wrong[0], found[1], wrong[1]);
-  EXPECT_GE(found[1], found[0] + images / 5);
-  EXPECT_GE(found[1], images * 2 / 3);
-  EXPECT_LE(wrong[1], wrong[0] + 1);
+              t[0].found, t[0].wrong + t[0].twins, t[1].found, t[1].wrong + t[1].twins);
+  EXPECT_GE(t[1].found, t[0].found + images / 5);
+  EXPECT_GE(t[1].found, images * 2 / 3);
+  EXPECT_LE(t[1].wrong + t[1].twins, t[0].wrong + t[0].twins + 1);
 }
 
 TEST(ObjectSearch, TheSectionIsNotFoundTurnedHalfRound) {
@@ -324,28 +342,15 @@ TEST(ObjectSearch, TheSectionIsNotFoundTurnedHalfRound) {
   // walls swap places, 12 and 10 cm high. The tracker's evidence hardly tells the two apart, and
   // without the detector's twin test on its chosen pose the search confirmed the twin on 4 of these
   // 22 noisy renders (the detection evaluation's noise scenes), where the detector alone is right.
-  const geometry::PinholeCamera cam = synth::default_camera();
-  const detection::DetectorParams dp;  // default view range
-  const auto [model, templates] = object_with_templates("section", cam, dp);
-  ASSERT_TRUE(model && templates);
-  const auto sym = detection::model_symmetries(*model);
-  std::mt19937 rng(1000u + 3u * 77u);  // the detection evaluation's noise scenes
-  int found = 0, twins = 0, wrong = 0;
   constexpr int kImages = 22;
-  for (std::uint32_t k = 0; k < kImages; ++k) {
-    const geometry::SE3 T = sc::random_pose(*model, dp.views, cam, rng);
-    const cv::Mat img = sc::render_scene(*model, T, cam, sc::Scene::kNoise, 100u + k);
-    const pipeline::FrameResult fr = search_still_image(model, templates, cam, {}, dp, img);
-    if (fr.report.status != scene::TrackStatus::kTracking) continue;
-    const auto e = detection::symmetric_pose_error(fr.T_cam_obj, T, sym);
-    if (e.translation <= 0.05 && e.rotation <= 5.0 * kDeg) ++found;
-    else if (e.rotation >= 170.0 * kDeg) ++twins;
-    else ++wrong;
-  }
-  std::printf("[section, noise] %d images: found %d, %d twins, %d other wrong\n", kImages, found, twins, wrong);
-  EXPECT_LE(twins, 1);
-  EXPECT_GE(found, kImages - 2);
-  EXPECT_LE(wrong, 1);
+  const std::array<pipeline::ObjectSearchParams, 1> sp{};
+  std::array<StillTally, 1> t;
+  ASSERT_TRUE(search_evaluation_renders("section", sc::Scene::kNoise, kImages, sp, t));
+  std::printf("[section, noise] %d images: found %d, %d twins, %d other wrong\n", kImages, t[0].found, t[0].twins,
+              t[0].wrong);
+  EXPECT_LE(t[0].twins, 1);
+  EXPECT_GE(t[0].found, kImages - 2);
+  EXPECT_LE(t[0].wrong, 1);
 }
 
 TEST(ObjectSearch, AFoundPoseIsConfirmedOnABlurredStillImage) {
@@ -356,36 +361,17 @@ TEST(ObjectSearch, AFoundPoseIsConfirmedOnABlurredStillImage) {
   // renders); or the tracker keeps it but uses fewer than half its features, `degraded`
   // (search.confirm_degraded: 1 section render). Without the two rules such poses are searched
   // for again on every frame of a still image.
-  const geometry::PinholeCamera cam = synth::default_camera();
-  const detection::DetectorParams dp;  // default view range
-  int found[2] = {0, 0}, wrong[2] = {0, 0};  // [0]: both rules off, [1]: on (the defaults)
+  std::array<pipeline::ObjectSearchParams, 2> sp;  // [0]: both rules off, [1]: on (the defaults)
+  sp[0].refound_factor = 1.0;
+  sp[0].confirm_degraded = 0.0;
+  std::array<StillTally, 2> t;
   constexpr int kImages = 40;
-  for (const char* name : {"ship", "section"}) {
-    const auto [model, templates] = object_with_templates(name, cam, dp);
-    ASSERT_TRUE(model && templates) << name;
-    const auto sym = detection::model_symmetries(*model);
-    std::mt19937 rng(1000u + 4u * 77u);  // the detection evaluation's blur scenes
-    for (std::uint32_t k = 0; k < kImages; ++k) {
-      const geometry::SE3 T = sc::random_pose(*model, dp.views, cam, rng);
-      const cv::Mat img = sc::render_scene(*model, T, cam, sc::Scene::kBlur, 100u + k);
-      for (int on = 0; on < 2; ++on) {
-        pipeline::ObjectSearchParams sp;
-        if (on == 0) {
-          sp.refound_factor = 1.0;
-          sp.confirm_degraded = 0.0;
-        }
-        const pipeline::FrameResult fr = search_still_image(model, templates, cam, sp, dp, img);
-        if (fr.report.status != scene::TrackStatus::kTracking) continue;
-        const auto e = detection::symmetric_pose_error(fr.T_cam_obj, T, sym);
-        if (e.translation <= 0.05 && e.rotation <= 5.0 * kDeg) ++found[on];
-        else ++wrong[on];
-      }
-    }
-  }
+  for (const char* name : {"ship", "section"})
+    ASSERT_TRUE(search_evaluation_renders(name, sc::Scene::kBlur, kImages, sp, t)) << name;
   std::printf("[ship and section, blur] %d images: found %d (%d wrong) without the two rules, %d (%d wrong) with\n",
-              2 * kImages, found[0], wrong[0], found[1], wrong[1]);
-  EXPECT_GE(found[1], found[0] + 3);
-  EXPECT_LE(wrong[1], wrong[0]);
+              2 * kImages, t[0].found, t[0].wrong + t[0].twins, t[1].found, t[1].wrong + t[1].twins);
+  EXPECT_GE(t[1].found, t[0].found + 3);
+  EXPECT_LE(t[1].wrong + t[1].twins, t[0].wrong + t[0].twins);
 }
 
 TEST(ObjectSearch, APoseFittedToClutterDoesNotOutrankTheObject) {
@@ -394,30 +380,14 @@ TEST(ObjectSearch, APoseFittedToClutterDoesNotOutrankTheObject) {
   // samples than the box itself at a far lower share (0.76 against 0.99 on one of these); ranked
   // by samples times share squared it won, with the share to the fourth power
   // (search.rank_evidence_power) it does not.
-  const geometry::PinholeCamera cam = synth::default_camera();
-  const detection::DetectorParams dp;  // default view range
-  const auto [model, templates] = box_with_templates(cam, dp);
-  ASSERT_TRUE(model && templates);
-  const auto sym = detection::model_symmetries(*model);
-  std::mt19937 rng(1000u + 2u * 77u);  // the detection evaluation's clutter scenes
-  int found[2] = {0, 0}, wrong[2] = {0, 0};  // [0]: power 2, [1]: the default
+  std::array<pipeline::ObjectSearchParams, 2> sp;  // [0]: power 2, [1]: the default
+  sp[0].rank_evidence_power = 2.0;
+  std::array<StillTally, 2> t;
   constexpr int kImages = 40;
-  for (std::uint32_t k = 0; k < kImages; ++k) {
-    const geometry::SE3 T = sc::random_pose(*model, dp.views, cam, rng);
-    const cv::Mat img = sc::render_scene(*model, T, cam, sc::Scene::kClutter, 100u + k);
-    for (int on = 0; on < 2; ++on) {
-      pipeline::ObjectSearchParams sp;
-      if (on == 0) sp.rank_evidence_power = 2.0;
-      const pipeline::FrameResult fr = search_still_image(model, templates, cam, sp, dp, img);
-      if (fr.report.status != scene::TrackStatus::kTracking) continue;
-      const auto e = detection::symmetric_pose_error(fr.T_cam_obj, T, sym);
-      if (e.translation <= 0.05 && e.rotation <= 5.0 * kDeg) ++found[on];
-      else ++wrong[on];
-    }
-  }
+  ASSERT_TRUE(search_evaluation_renders("box", sc::Scene::kClutter, kImages, sp, t));
   std::printf("[box, clutter] %d images: found %d (%d wrong) with the share squared, %d (%d wrong) to the fourth\n", kImages,
-              found[0], wrong[0], found[1], wrong[1]);
-  EXPECT_GE(found[1], found[0] + 2);
-  EXPECT_GE(found[1], kImages * 19 / 20);
-  EXPECT_LE(wrong[1], wrong[0]);
+              t[0].found, t[0].wrong + t[0].twins, t[1].found, t[1].wrong + t[1].twins);
+  EXPECT_GE(t[1].found, t[0].found + 2);
+  EXPECT_GE(t[1].found, kImages * 19 / 20);
+  EXPECT_LE(t[1].wrong + t[1].twins, t[0].wrong + t[0].twins);
 }
