@@ -160,7 +160,7 @@ bool ObjectSearch::over_place(const Slot& s, const geometry::SE3& T, const geome
 }
 
 double ObjectSearch::refine(std::size_t object, const CameraImage& img, double stamp_s, geometry::SE3& T,
-                            double accept_evidence) {
+                            double accept_evidence, bool degraded_ok) {
   if (T.translation().z() <= 1e-3) return -1.0;
   probe_scene_.set_pose(object, T);
   scene::Object& o = probe_scene_.objects()[object];
@@ -177,7 +177,7 @@ double ObjectSearch::refine(std::size_t object, const CameraImage& img, double s
   const bool leaks = slot.leak_typical >= 0.0 && slot.leak_typical <= sp.leak_max_typical && o.leak_samples >= sp.leak_min_samples && sp.leak_margin < 1.0 &&
                      o.leak > slot.leak_typical + sp.leak_margin && over_place(slot, o.T_ref_obj, slot.T_leak);
   last_degraded_ = o.status == scene::TrackStatus::kDegraded;
-  const bool tracked = (o.status == scene::TrackStatus::kTracking || (allow_degraded_ && last_degraded_)) && !leaks &&
+  const bool tracked = (o.status == scene::TrackStatus::kTracking || (degraded_ok && last_degraded_)) && !leaks &&
                        in_view_range(slot, o.T_ref_obj);
   const bool ok = tracked && (o.evidence >= accept_evidence ||
                               (o.evidence >= p_.edge_test_evidence && edge_test(slots_[object], img, o.T_ref_obj)));
@@ -254,14 +254,14 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
     return (T.translation() - T_other.translation()).norm() <= factor * p_.confirm_translation_m &&
            geometry::rotation_angle_between(T, T_other) <= factor * p_.confirm_rotation_deg * kDeg;
   };
-  const auto consider = [&](geometry::SE3 T, bool local, double accept, bool by_colour = false) {
+  const auto consider = [&](geometry::SE3 T, bool local, double accept, bool by_colour = false, bool degraded_ok = false) {
     if (stop.stop_requested()) {  // shutting down: the hypotheses left are not refined
       rep.cancelled = true;
       return -1.0;
     }
     ++rep.tried;
     const geometry::SE3 T_start = T;
-    double e = refine(object, img, stamp_s, T, accept);
+    double e = refine(object, img, stamp_s, T, accept, degraded_ok);
     // A pose verified by its colour, accepted below the usual share: the refinement must keep it.
     if (e >= 0.0 && by_colour && last_evidence_ < p_.accept_evidence && !within(T, T_start, 1.0)) e = -1.0;
     if (e >= 0.0 && tag.found && s.tag->corner_offset_px(tag, T) > p_.tag.max_offset_px) {
@@ -288,9 +288,8 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
   bool refound = false;  // ... or when this frame's search finds it again (see refound_factor)
   geometry::SE3 T_last_candidate;
   if (s.have_candidate) {
-    allow_degraded_ = p_.confirm_degraded > 0.0;
-    double e = consider(s.T_candidate, s.candidate_local, s.candidate_accept - p_.confirm_margin);
-    allow_degraded_ = false;
+    double e = consider(s.T_candidate, s.candidate_local, s.candidate_accept - p_.confirm_margin, false,
+                        p_.confirm_degraded > 0.0);
     const geometry::SE3 T = e >= 0.0 ? accepted_.back().T_cam_obj : s.T_candidate;  // refined
     // A `degraded` confirmation: closer, and at the share the pose was accepted at; else it is no
     // found pose of this frame.

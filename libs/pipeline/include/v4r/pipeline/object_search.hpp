@@ -282,8 +282,10 @@ class ObjectSearch {
   /// where T_other puts it.
   [[nodiscard]] static bool over_place(const Slot& s, const geometry::SE3& T, const geometry::SE3& T_other);
   /// Refines T (camera frame) with the private cycle; returns its rank (edge samples the image
-  /// confirms) if accepted, else -1; its edge evidence (share) in last_evidence_.
-  double refine(std::size_t object, const CameraImage& img, double stamp_s, geometry::SE3& T, double accept_evidence);
+  /// confirms) if accepted, else -1; its edge evidence (share) in last_evidence_. A `degraded`
+  /// status counts as tracked when degraded_ok (a confirmation); last_degraded_ tells which.
+  double refine(std::size_t object, const CameraImage& img, double stamp_s, geometry::SE3& T, double accept_evidence,
+                bool degraded_ok = false);
 
   ObjectSearchParams p_;
   detection::DetectorParams dp_;
@@ -300,7 +302,6 @@ class ObjectSearch {
   std::uint64_t search_frame_id_ = 0;  // search_frame calls so far
   std::uint64_t gradients_id_ = 0;     // the call whose image the detector's gradients are of (0: none)
   double last_evidence_ = 0.0;
-  bool allow_degraded_ = false;   // refine() takes a `degraded` status as tracked (a confirmation)
   bool last_degraded_ = false;    // the last refined pose was reported `degraded`
   double last_leak_ = -1.0;       // the last refined pose's silhouette leak (-1: no colour samples)
   int last_leak_samples_ = 0;
