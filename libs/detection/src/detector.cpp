@@ -493,6 +493,17 @@ int Detector::twin_verdict(const geometry::SE3& T, const geometry::SE3& S, geome
   if (t.na < kMinDistinct || t.nb < kMinDistinct) return 0;
   if (t.a >= t.b + p_.verify.twin_margin) return 1;
   if (t.b >= t.a + p_.verify.twin_margin) return -1;
+  // Neither ahead: the distances to the edges' centres, with the pose aligned as its twin was
+  // (a pose refined by the tracker sits elsewhere on a smeared edge than the detector's alignment
+  // puts its twin).
+  const double rm = p_.verify.twin_residual_margin;
+  if (!(rm > 0.0)) return 0;
+  geometry::SE3 Ta = T;
+  aligner_.refine(pyramid_, Ta);
+  const EdgeAligner::TwinShares u = aligner_.compare_twins(pyramid_, Ta, twin, 2.0 * p_.verify.match_distance_px);
+  if (u.na < kMinDistinct || u.nb < kMinDistinct) return 0;
+  if (u.residual_a + rm <= u.residual_b) return 1;
+  if (u.residual_b + rm <= u.residual_a) return -1;
   return 0;
 }
 

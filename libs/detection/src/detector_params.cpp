@@ -116,6 +116,9 @@ void add_params(ParamRegistry& r, DetectorParams& p) {
         "near symmetries within this share of the model's diagonal give a pose twins it must beat (twin_margin; 0: none)");
   r.add("detect.verify.twin_margin", &f.twin_margin, 0.0, 1.0, "",
         "a pose and its near-symmetric twin: the one whose distinctive edge samples match by this share more is kept (0: off)");
+  r.add("detect.verify.twin_residual_margin", &f.twin_residual_margin, 0.0, 4.0, "px",
+        "... neither ahead by that share: the one whose distinctive samples lie nearer the centres of the image's edges by this mean distance "
+        "(blurred images; 0: off)");
   r.add("detect.verify.tie_score", &f.tie_score, 0.0, 1.0, "",
         "distinct verified poses scoring within this of the best are compared with it where their edge samples differ (0: off)");
   r.add("detect.verify.tie_margin", &f.tie_margin, 0.0, 1.0, "",

@@ -53,6 +53,7 @@ EdgeAligner::EdgeAligner(const model::Model& model, const geometry::PinholeCamer
       own_(static_cast<std::size_t>(std::max(0, cam.width)) * static_cast<std::size_t>(std::max(0, cam.height)), 0),
       twin_px_(samples_.size()),
       twin_matched_(samples_.size(), 0),
+      twin_residual_(samples_.size(), 0.0f),
       contrast_(features::SilhouetteContrastParams{.min_group_samples = p.verify.leak_group_samples}) {}
 
 double EdgeAligner::search(const GradientPyramid& g, const Eigen::Vector2d& px, const Eigen::Vector2d& n,
@@ -411,6 +412,12 @@ Verification EdgeAligner::verify(const GradientPyramid& g, const geometry::SE3& 
   return v;
 }
 
+double EdgeAligner::edge_residual(const GradientPyramid& g, const EdgeSample& s) const {
+  const double t = search(g, s.px, s.normal, kTwinReachPx);
+  if (std::isnan(t)) return kTwinReachPx;
+  return std::min(kTwinReachPx, std::abs(plateau_centre(g, s, static_cast<int>(t))));
+}
+
 EdgeAligner::TwinShares EdgeAligner::compare_twins(const GradientPyramid& g, const geometry::SE3& T_a,
                                                   const geometry::SE3& T_b, double px) {
   TwinShares r;
@@ -419,6 +426,7 @@ EdgeAligner::TwinShares EdgeAligner::compare_twins(const GradientPyramid& g, con
   for (int i = 0; i < na; ++i) {
     twin_px_[static_cast<std::size_t>(i)] = samples_[static_cast<std::size_t>(i)].px;
     twin_matched_[static_cast<std::size_t>(i)] = matched_[static_cast<std::size_t>(i)];
+    twin_residual_[static_cast<std::size_t>(i)] = static_cast<float>(edge_residual(g, samples_[static_cast<std::size_t>(i)]));
   }
   const int nb = verify(g, T_b).samples;
   if (nb < p_.min_samples) return r;
@@ -439,14 +447,18 @@ EdgeAligner::TwinShares EdgeAligner::compare_twins(const GradientPyramid& g, con
     if (near_b(twin_px_[static_cast<std::size_t>(i)])) continue;
     ++r.na;
     ma += twin_matched_[static_cast<std::size_t>(i)];
+    r.residual_a += twin_residual_[static_cast<std::size_t>(i)];
   }
   for (int i = 0; i < nb; ++i) {
     if (near_a(samples_[static_cast<std::size_t>(i)].px)) continue;
     ++r.nb;
     mb += matched_[static_cast<std::size_t>(i)];
+    r.residual_b += edge_residual(g, samples_[static_cast<std::size_t>(i)]);
   }
   r.a = r.na > 0 ? static_cast<double>(ma) / r.na : 0.0;
   r.b = r.nb > 0 ? static_cast<double>(mb) / r.nb : 0.0;
+  r.residual_a = r.na > 0 ? r.residual_a / r.na : kTwinReachPx;
+  r.residual_b = r.nb > 0 ? r.residual_b / r.nb : kTwinReachPx;
   return r;
 }
 

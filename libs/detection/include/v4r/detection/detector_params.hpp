@@ -153,6 +153,11 @@ struct VerifyParams {
   /// exceeds the twin's by this, or, with too few such samples or neither ahead, when the twin
   /// scores stand_out_margin less (0: the twins are not compared, only scored).
   double twin_margin = 0.15;
+  /// Neither ahead by twin_margin (a blurred image: both poses' distinctive samples lie on the
+  /// smeared edges): the pose whose distinctive samples lie nearer the centres of the image's
+  /// edges, by at least this mean distance (px), is ahead (EdgeAligner::TwinShares::residual_*;
+  /// 0: off).
+  double twin_residual_margin = 0.25;
   /// Near ties: when distinct verified poses (beyond distinct_m / distinct_deg, modulo the
   /// symmetries) score within tie_score of the best one, the first of them whose distinctive edge
   /// samples (as for twins) match by tie_margin more than the best one's is ranked first (0: off).

@@ -70,7 +70,12 @@ class EdgeAligner {
   struct TwinShares {
     double a = 0.0, b = 0.0;  ///< matched share of a's distinctive samples, of b's
     int na = 0, nb = 0;       ///< distinctive samples of a, of b
+    /// Mean distance (px) from a's distinctive samples, and from b's, to the centre of the
+    /// nearest aligned edge along their normals (a blurred edge's plateau at its centroid),
+    /// capped at kTwinReachPx (also when there is none).
+    double residual_a = 0.0, residual_b = 0.0;
   };
+  static constexpr double kTwinReachPx = 4.0;
   TwinShares compare_twins(const GradientPyramid& g, const geometry::SE3& T_a, const geometry::SE3& T_b, double px);
 
  private:
@@ -111,6 +116,9 @@ class EdgeAligner {
   std::vector<std::uint8_t> own_;         // mark_continued: camera-sized, 1 near the pose's samples
   std::vector<Eigen::Vector2d> twin_px_;  // compare_twins: the first pose's sample positions
   std::vector<std::uint8_t> twin_matched_;
+  std::vector<float> twin_residual_;      // compare_twins: the first pose's distances to the edge (px)
+  // The distance (px, at most kTwinReachPx) from a sample to the centre of the nearest aligned edge.
+  double edge_residual(const GradientPyramid& g, const EdgeSample& s) const;
   features::SilhouetteContrast contrast_;
 };
 
