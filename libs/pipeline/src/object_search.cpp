@@ -49,6 +49,10 @@ void add_search_params(ParamRegistry& r, ObjectSearchParams& p) {
   r.add("search.stand_out_evidence", &p.stand_out_evidence, 0.0, 1.0, "",
         "a detector pose verified by its colour (the colour test or the stand-out verdict; a partly hidden object) is accepted at "
         "this share, when the tracker keeps it within the confirm limits (>= accept_evidence: off)");
+  r.add("search.top_evidence", &p.top_evidence, 0.0, 1.0, "",
+        "with no detector pose verified, the best-scoring one (edge score at least search.top_score) is accepted at this share when "
+        "the tracker keeps it within the confirm limits, and confirmed at the usual share (>= accept_evidence: off)");
+  r.add("search.top_score", &p.top_score, 0.0, 1.0, "", "... the detector's edge score it needs (detect.verify: share of samples in runs)");
   r.add("search.view_margin", &p.view_margin_deg, 0.0, 180.0, "deg",
         "a found pose must lie in the detector's view range (detect.views.*) widened by this");
   r.add("search.confirm_translation", &p.confirm_translation_m, 0.0, 10.0, "m",
@@ -345,8 +349,13 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
       for (int k = 0; k < n; ++k) {
         const detection::Hypothesis& h = hyp_[static_cast<std::size_t>(k)];
         const bool by_colour = h.verified && h.verification.score < accept_score;
-        consider(h.T_cam_obj, false, by_colour ? std::min(p_.stand_out_evidence, p_.accept_evidence) : p_.accept_evidence,
-                 by_colour);
+        // Nothing verified: the best-scoring pose (first), at top_evidence, kept in place by the
+        // tracker like a colour-verified one, and confirmed at the usual share.
+        const bool top = k == 0 && r.verified == 0 && p_.top_evidence < p_.accept_evidence && h.verification.score >= p_.top_score;
+        const double accept = by_colour ? std::min(p_.stand_out_evidence, p_.accept_evidence) : top ? p_.top_evidence : p_.accept_evidence;
+        const std::size_t before = accepted_.size();
+        consider(h.T_cam_obj, false, accept, by_colour || top);
+        if (top && accepted_.size() > before) accepted_.back().accept = p_.accept_evidence;
       }
       if (p_.template_starts)
         for (int k = 0; k < n; ++k) consider(hyp_[static_cast<std::size_t>(k)].T_template, false, p_.accept_evidence);

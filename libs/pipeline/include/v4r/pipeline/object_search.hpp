@@ -62,6 +62,14 @@ struct ObjectSearchParams {
   /// share of its projected model's edge samples is confirmed; so is the candidate it gives on the
   /// next frame. >= accept_evidence: off, and the detector's colour verdicts are not run.
   double stand_out_evidence = 0.4;
+  /// With no detector hypothesis verified on the frame, the best-scoring one, when its edge score
+  /// is at least top_score, is accepted at this share, when the tracker's refinement keeps it
+  /// within confirm_translation / confirm_rotation (a partly hidden object whose outline does not
+  /// part its colours from the surroundings: a grey plate structure before a dark background).
+  /// Its candidate is confirmed on the next frame at accept_evidence less confirm_margin, as any
+  /// other. >= accept_evidence: off.
+  double top_evidence = 0.6;
+  double top_score = 0.5;  ///< (see top_evidence)
   /// A found pose must lie in the detector's view range (detect.views.*: elevation, in-plane
   /// turn, distance) widened by this many degrees (distance: by the ratio 1 + margin / 45),
   /// modulo the model's symmetries: an edge image can fit a turned and farther box as well as
