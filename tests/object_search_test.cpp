@@ -327,6 +327,7 @@ TEST(ObjectSearch, APartlyHiddenObjectThatStandsOutIsFoundOnAStillImage) {
   // twice (a still object: found, then confirmed).
   std::array<pipeline::ObjectSearchParams, 2> sp;  // [0]: stand-out evidence off, [1]: on
   sp[0].stand_out_evidence = 1.0;
+  sp[0].top_evidence = sp[0].accept_evidence;  // (with nothing verified the best pose would be taken instead)
   std::array<StillTally, 2> t;
   constexpr int kImages = 12;
   for (const char* name : {"ship", "flange"})
