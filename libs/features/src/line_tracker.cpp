@@ -475,6 +475,24 @@ int LineTracker::extract_edgels(int want, bool cues, int* rejected) {
       }
       slots[pos] = e;
     }
+    // A pair followed as one: the strongest edgel of each sign (the slots are sorted by
+    // strength), close enough, make one at their midpoint; its sign tells the order across the
+    // window (+1: the positive edge first, a bright bar on this row's profile).
+    if (pair_span_ > 0.0f && count >= 2) {
+      int kp = -1, kn = -1;
+      for (int k = 0; k < count; ++k) {
+        if (slots[k].sign > 0 && kp < 0) kp = k;
+        if (slots[k].sign < 0 && kn < 0) kn = k;
+      }
+      if (kp >= 0 && kn >= 0 && std::abs(slots[kp].u - slots[kn].u) <= pair_span_ &&
+          std::min(slots[kp].strength, slots[kn].strength) >= 0.5f * std::max(slots[kp].strength, slots[kn].strength)) {
+        const Edgel& a = slots[kp];
+        const Edgel& b = slots[kn];
+        const int col = (a.col + b.col) / 2;
+        slots[0] = Edgel{0.5f * (a.u + b.u), a.v, std::min(a.strength, b.strength), a.u < b.u ? 1 : -1, i, col};
+        count = 1;
+      }
+    }
     row_count_[i] = count;
     for (int k = 0; k < count; ++k) {
       pool_[pool_size] = i * k_max + k;
@@ -620,7 +638,9 @@ LineMeasurement LineTracker::track(const image::ImageView& img, const Segment2& 
   const double step = (len - 2.0 * margin) / (rows - 1);  // pixels between rows (subsampling)
   const double mid = 0.5 * (rows - 1);
   const Eigen::Vector2d start = predicted.a + margin * d;
-  const int want = state.polarity > 0 ? 1 : (state.polarity < 0 ? -1 : 0);
+  pair_span_ = range.pair_span > 0.0 ? static_cast<float>(range.pair_span) : 0.0f;
+  const bool pair = pair_span_ > 0.0f;
+  const int want = pair ? 0 : (state.polarity > 0 ? 1 : (state.polarity < 0 ? -1 : 0));
   int valid_rows = 0;
   for (int i = 0; i < rows; ++i) {
     const Eigen::Vector2d c = start + (i * step) * d;
@@ -692,6 +712,10 @@ LineMeasurement LineTracker::track(const image::ImageView& img, const Segment2& 
   }
   if (valid_rows < kMinInliers) return m;
   grey_gradient();
+  if (pair) {  // (the pair's centre: grey gradient only, no cues, nothing learned)
+    detect(0, false, valid_rows, m, false);
+    return m;
+  }
 
   // Appearance checks of the learned object sides (paper 4.1).
   bool cues = false;

@@ -219,6 +219,65 @@ TEST(LineTracker, SearchRangeSplitsAThinWallIntoItsTwoEdges) {
   EXPECT_GT(unsplit_wrong, kCases / 2);  // the split is what makes the difference
 }
 
+/// A bright bar `width` px wide (its mid-line `mid`) on a darker ground, smeared across by a
+/// motion blur `blur` px long (an exact box blur of the bar's profile), quantised with noise.
+std::vector<std::uint8_t> blurred_bar(int w, int h, const TrueLine& mid, double width, double blur, double sigma,
+                                      std::uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> noise(0.0, sigma);
+  std::vector<std::uint8_t> buf(static_cast<std::size_t>(w) * h);
+  const Eigen::Vector2d n = mid.normal();
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const double d = (Eigen::Vector2d(x, y) - mid.p).dot(n);  // from the mid-line
+      // Share of the exposure the pixel sees the bar: [d - blur/2, d + blur/2] against [-width/2, width/2].
+      const double lo = std::max(d - 0.5 * blur, -0.5 * width), hi = std::min(d + 0.5 * blur, 0.5 * width);
+      const double cover = blur > 0.0 ? std::max(0.0, hi - lo) / blur : (std::abs(d) <= 0.5 * width ? 1.0 : 0.0);
+      const double v = 70.0 + 110.0 * cover + noise(rng);
+      buf[static_cast<std::size_t>(y) * w + x] = static_cast<std::uint8_t>(std::clamp(std::lround(v), 0L, 255L));
+    }
+  return buf;
+}
+
+TEST(LineTracker, APairFollowedAsOneIsMeasuredAtItsMidLineUnderMotionBlur) {
+  // A thin plate 4 px wide seen across: its two edges too close for split windows, tracked as one
+  // against the pair's mid-line. Motion blur 10 px long across it turns each edge into a gradient
+  // plateau as wide as the plate, at the blur's ends: the rising edge's 5 px before the mid-line,
+  // the falling one's 5 px after. A window that takes one edge is 5 px off the mid-line; the
+  // centre between the strongest edge of each sign (SearchRange::pair_span) is on it. Without
+  // blur, the pair's centre is the mid-line too.
+  constexpr int kW = 240, kH = 240, kCases = 40;
+  std::mt19937 rng(4242);
+  std::uniform_real_distribution<double> angle(0.0, kPi), uni(-1.0, 1.0);
+  LineTracker tracker;
+  for (const double blur : {10.0, 0.0}) {
+    ErrorStats pair_err, single_err;
+    int pair_found = 0;
+    for (int k = 0; k < kCases; ++k) {
+      const TrueLine mid{{kW / 2.0 + 0.5 * uni(rng), kH / 2.0 + 0.5 * uni(rng)}, dir(angle(rng))};
+      const auto buf = blurred_bar(kW, kH, mid, 4.0, blur, 3.0, 900u + static_cast<unsigned>(k));
+      const Segment2 pred = segment(mid.p + uni(rng) * mid.normal(), mid.t, 120.0);  // within 1 px
+      LineTrackState s1, s2;
+      SearchRange pair;
+      pair.pair_span = 12.0;
+      const LineMeasurement m = tracker.track(view_of(buf, kW, kH), pred, s1, nullptr, pair);
+      if (m.found) {
+        ++pair_found;
+        pair_err.add(mid.error(m.line));
+      }
+      const LineMeasurement one = tracker.track(view_of(buf, kW, kH), pred, s2);
+      if (one.found) single_err.add(mid.error(one.line));
+    }
+    std::printf("[pair, blur %.0f px] found %d/%d, from the mid-line mean %.3f px max %.3f px; one edge: mean %.3f px\n", blur,
+                pair_found, kCases, pair_err.mean(), pair_err.max, single_err.mean());
+    EXPECT_EQ(pair_found, kCases);
+    EXPECT_LE(pair_err.max, 0.5);
+    if (blur > 0.0) {
+      EXPECT_GT(single_err.mean(), 4.0);  // (what the pair's centre corrects)
+    }
+  }
+}
+
 TEST(LineTracker, PolarityStateRejectsStrongerOppositeEdge) {
   constexpr int kW = 240, kH = 240;
   LineTracker tracker;

@@ -144,6 +144,14 @@ struct LineTrackState {
 /// \brief Offsets across a tracking window (pixels) where an edge may be found.
 struct SearchRange {
   double lo = -1e9, hi = 1e9;
+  /// > 0: the window follows a pair of close parallel edges as one (a thin plate, its two edges
+  /// closer than the window can split) and measures the centre between them: per row, the
+  /// strongest edge of each sign, when no farther apart than this (pixels), give their midpoint.
+  /// Motion blur across a thin plate pushes each of its edges outward by half the blur (each
+  /// edge's gradient plateau is the plate's width wide, at the blur's ends); their midpoint stays
+  /// on the plate's mid-line. A row without both keeps its edges. The state's polarity and learned
+  /// sides are neither used nor updated (they are the single edge's).
+  double pair_span = 0.0;
 };
 
 /// \brief Finds a straight edge near a predicted segment.
@@ -254,6 +262,7 @@ class LineTracker {
   Eigen::Vector2d d_ = Eigen::Vector2d::Zero(), n_ = Eigen::Vector2d::Zero();  // window axis, normal
   SideCheck check_[2];
   bool chroma_only_ = false;  // appearance_ok checks chromaticity only (a fallback's search)
+  float pair_span_ = 0.0f;    // SearchRange::pair_span of the current track() call
   // Silhouette edges (outside_distinct_k): candidates whose band on side `side` has the object
   // side's chromaticity (mean, tol) are rejected.
   struct OutsideCheck {
