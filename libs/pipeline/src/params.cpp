@@ -98,6 +98,10 @@ ParamRegistry make_registry(CycleParams& p) {
         "a short edge that stays this close to a longer edge from a shared junction over its whole length is left out (0: off)");
   r.add("cycle.track_side_by_side", &p.track_side_by_side,
         "track side-by-side edges in split windows or as one mid-line edge; false: leave both out");
+  r.add("cycle.pair_span", &p.pair_span_px, 0.0, 1000.0, "px",
+        "a pair tracked as one across a thin face is measured at the centre between its two edges, found at most this far apart (0: its visible edge)");
+  r.add("cycle.pair_thin", &p.pair_thin, 0.0, 100.0, "",
+        "... a thin face: the pair's distance in the model at most this share of its edges' length");
   r.add("cycle.split_min_px", &p.split_min_px, 0.5, 1000.0, "px",
         "side-by-side edges get windows split half way when each keeps this much room; else they are ambiguous");
   r.add("cycle.ambiguity_min_overlap", &p.ambiguity_min_overlap, 0.0, 1.0, "", "overlap (fraction) for ambiguity");

@@ -212,11 +212,19 @@ void ViewPredictor::mark_ambiguous(scene::View& view, const scene::Camera& cam) 
         // Mid-line: keep's ends moved half way to their closest points on the other's line.
         const Eigen::Vector3d o1 = other.X1, ou = (other.X2 - other.X1).normalized();
         const auto mid = [&](const Eigen::Vector3d& X) { return 0.5 * (X + o1 + ou * ou.dot(X - o1)); };
+        // A thin face between them (a plate's edge face: their distance in the model a small
+        // share of their length) shows as a bar whose two edges the window finds as a pair; a
+        // wide face seen edge-on (a box's side) is no such bar, its texture is no second edge.
+        const Eigen::Vector3d kc = 0.5 * (keep.X1 + keep.X2);
+        const double apart = (kc - o1 - ou * ou.dot(kc - o1)).norm();
+        const double length = std::min((keep.X2 - keep.X1).norm(), (other.X2 - other.X1).norm());
+        const bool thin = apart <= p_.pair_thin * length;
         keep.X1 = mid(keep.X1);
         keep.X2 = mid(keep.X2);
         keep.merged = true;
         keep.sigma_px = p_.line_sigma_px + 0.5 * std::abs(s_g);
         keep.range = features::SearchRange{};
+        if (p_.pair_span_px > 0.0 && thin) keep.range.pair_span = std::max(p_.pair_span_px, std::abs(s_g) + 2.0);
         other.ambiguous = other.ambiguous || other.visible;
       }
     }
