@@ -5,7 +5,7 @@
 // backgrounds, ViSP's Klimt and Solvay photos); median and p95 detection time.
 //
 //   build/bin/v4r_detection_eval [--images N] [--empty N] [--models box,ship,...] [--scenes plain,clutter,...]
-//                                [--set detect.x=y --set search.x=y ...]   (V4R_EVAL_DEBUG=1|2|3: per-image diagnosis on stderr)
+//                                [--set detect.x=y --set search.x=y --set cycle.x=y ...]   (V4R_EVAL_DEBUG=1|2|3: per-image diagnosis on stderr)
 //   build/bin/v4r_detection_eval --sponge N   (the colour stage: N sponge images with and without it)
 //   build/bin/v4r_detection_eval --sequences DIR,DIR,... [--every 10]   (frames another renderer made)
 //   (one core: taskset -c 1 build/bin/v4r_detection_eval)
@@ -36,6 +36,7 @@
 #include "v4r/model/cao_reader.hpp"
 #include "v4r/model/mesh_reader.hpp"
 #include "v4r/model/mesh_writer.hpp"
+#include "v4r/pipeline/params.hpp"
 #include "v4r/pipeline/tracker.hpp"
 
 using namespace v4r;
@@ -292,8 +293,9 @@ struct SearchOutcome {
 
 SearchOutcome search_still(const std::shared_ptr<const model::Model>& m, const std::shared_ptr<const TemplateSet>& set,
                            const geometry::PinholeCamera& cam, const DetectorParams& params,
-                           const pipeline::ObjectSearchParams& search, const cv::Mat& bgr) {
-  pipeline::SingleObjectTracker tracker(m, cam);
+                           const pipeline::ObjectSearchParams& search, const cv::Mat& bgr,
+                           const pipeline::CycleParams& cycle = {}) {
+  pipeline::SingleObjectTracker tracker(m, cam, cycle);
   tracker.enable_search(set, search, params);
   tracker.start_search();
   cv::Mat grey;
@@ -397,7 +399,7 @@ int main(int argc, char** argv) {
   app.add_option("--empty", empty, "object-free images for the false accepts")->check(CLI::NonNegativeNumber);
   app.add_option("--models", models_arg, "comma-separated: box, ship, flange, section, mesh");
   app.add_option("--scenes", scenes_arg, "comma-separated: plain, textured, clutter, noise, blur, occlusion30, or all");
-  app.add_option("--set", sets, "a detector or search parameter: --set detect.x=y, --set search.x=y (repeatable)");
+  app.add_option("--set", sets, "a detector, search or (--through-search) tracker parameter: --set detect.x=y, search.x=y, cycle.x=y (repeatable)");
   app.add_option("--sequences", sequence_dirs,
                  "only frames of sequences another renderer made: comma-separated folders of the development benchmark")
       ->delimiter(',');
@@ -418,8 +420,17 @@ int main(int argc, char** argv) {
   ParamRegistry reg;
   add_params(reg, params);
   pipeline::add_search_params(reg, search);
+  pipeline::CycleParams cycle;  // (--through-search: the search's tracker)
+  ParamRegistry cycle_reg = pipeline::make_registry(cycle);
   for (const std::string& kv : sets) {
     const auto eq = kv.find('=');
+    if (reg.find(kv.substr(0, eq)) == nullptr && cycle_reg.find(kv.substr(0, eq)) != nullptr) {
+      if (auto r = cycle_reg.set(kv.substr(0, eq), eq == std::string::npos ? "" : kv.substr(eq + 1)); !r) {
+        fmt::print(stderr, "--set {}: {}\n", kv, r.error().to_string());
+        return 1;
+      }
+      continue;
+    }
     if (auto r = reg.set(kv.substr(0, eq), eq == std::string::npos ? "" : kv.substr(eq + 1)); !r) {
       fmt::print(stderr, "--set {}: {}\n", kv, r.error().to_string());
       return 1;
@@ -485,7 +496,7 @@ int main(int argc, char** argv) {
         const geometry::SE3 T = scenes::random_pose(*m, params.views, cam, rng);
         const cv::Mat img = scenes::render_scene(*m, T, cam, scenes[si], 100u + static_cast<unsigned>(k));
         if (through_search) {
-          const SearchOutcome so = search_still(m, set, cam, params, search, img);
+          const SearchOutcome so = search_still(m, set, cam, params, search, img, cycle);
           ms.push_back(so.ms);
           all_ms.push_back(so.ms);
           const char* outcome = "none locked";
@@ -545,7 +556,7 @@ int main(int argc, char** argv) {
       if (img.empty()) continue;
       if (through_search) {
         ++n;
-        fa += search_still(ms.first, ms.second, cam, params, search, img).locked ? 1 : 0;
+        fa += search_still(ms.first, ms.second, cam, params, search, img, cycle).locked ? 1 : 0;
         continue;
       }
       const DetectionResult r = det.detect(io::as_colour_view(img), hyp);
