@@ -484,8 +484,7 @@ int LineTracker::extract_edgels(int want, bool cues, int* rejected) {
         if (slots[k].sign > 0 && kp < 0) kp = k;
         if (slots[k].sign < 0 && kn < 0) kn = k;
       }
-      if (kp >= 0 && kn >= 0 && std::abs(slots[kp].u - slots[kn].u) <= pair_span_ &&
-          std::min(slots[kp].strength, slots[kn].strength) >= 0.5f * std::max(slots[kp].strength, slots[kn].strength)) {
+      if (kp >= 0 && kn >= 0 && std::abs(slots[kp].u - slots[kn].u) <= pair_span_) {
         const Edgel& a = slots[kp];
         const Edgel& b = slots[kn];
         const int col = (a.col + b.col) / 2;

@@ -275,7 +275,63 @@ TEST(ViewPredictor, HiddenEdgesOfAFaceTurningEdgeOnDoNotTakeTheSilhouetteOut) {
   for (const auto& [a, b] : {std::pair{5, 1}, {4, 0}}) {
     EXPECT_TRUE(edge(a, b).merged) << a << "-" << b;
     EXPECT_GT(edge(a, b).sigma_px, p.line_sigma_px) << a << "-" << b;
+    // A whole side face between them, no thin one: measured at the visible edge, not as a pair.
+    EXPECT_EQ(edge(a, b).range.pair_span, 0.0) << a << "-" << b;
   }
+}
+
+TEST(ViewPredictor, AThinPlatesEdgeFaceIsMeasuredAsAPairAtItsCentre) {
+  // A plate 30 x 20 cm, 1 cm thick, seen from above its top edge face at about 1 m: the face's
+  // two long edges 3-4 px apart, tracked as one against their mid-line and measured at the
+  // centre between them (cycle.pair_span), as a blurred thin plate needs.
+  const char* plate = R"(V1
+8
+-0.15 -0.10 0.00
+ 0.15 -0.10 0.00
+ 0.15  0.10 0.00
+-0.15  0.10 0.00
+-0.15 -0.10 0.01
+ 0.15 -0.10 0.01
+ 0.15  0.10 0.01
+-0.15  0.10 0.01
+0
+0
+6
+4 0 3 2 1
+4 4 5 6 7
+4 0 1 5 4
+4 2 3 7 6
+4 1 2 6 5
+4 3 0 4 7
+0
+0
+)";
+  const scene::Object obj = object_from_cao(
+      plate, "plate.cao",
+      geometry::look_at(Eigen::Vector3d(0.05, 0.6, 0.9), Eigen::Vector3d(0.0, 0.0, 0.005), Eigen::Vector3d::UnitY()));
+  ASSERT_NE(obj.model, nullptr);
+  const scene::Camera cam = camera_640x480(600, 600, 319.5, 239.5);
+  scene::View view = fresh_view(*obj.model);
+  CycleParams p;
+  ViewPredictor predictor(p);
+  predictor.predict(obj, view, cam);
+  predictor.predict(obj, view, cam);
+  const scene::LineFeature* pair = nullptr;
+  for (const scene::LineFeature& f : view.lines) {
+    const auto& e = obj.model->lines()[f.edge];
+    const bool top_face = (e.a == 2 && e.b == 3) || (e.a == 3 && e.b == 2) || (e.a == 6 && e.b == 7) || (e.a == 7 && e.b == 6);
+    if (top_face && f.merged) pair = &f;
+  }
+  ASSERT_NE(pair, nullptr) << "the top edge face's edges are not tracked as one";
+  EXPECT_EQ(pair->range.pair_span, p.pair_span_px);
+  // Off, the pair's visible edge is measured.
+  CycleParams off = p;
+  off.pair_span_px = 0.0;
+  ViewPredictor predictor_off(off);
+  scene::View view_off = fresh_view(*obj.model);
+  predictor_off.predict(obj, view_off, cam);
+  predictor_off.predict(obj, view_off, cam);
+  for (const scene::LineFeature& f : view_off.lines) EXPECT_EQ(f.range.pair_span, 0.0);
 }
 
 }  // namespace
