@@ -476,15 +476,16 @@ int LineTracker::extract_edgels(int want, bool cues, int* rejected) {
       slots[pos] = e;
     }
     // A pair followed as one: the strongest edgel of each sign (the slots are sorted by
-    // strength), close enough, make one at their midpoint; its sign tells the order across the
-    // window (+1: the positive edge first, a bright bar on this row's profile).
+    // strength), close enough and of comparable strength, make one at their midpoint; its sign
+    // tells the order across the window (+1: the positive edge first, a bright bar on this row).
     if (pair_span_ > 0.0f && count >= 2) {
       int kp = -1, kn = -1;
       for (int k = 0; k < count; ++k) {
         if (slots[k].sign > 0 && kp < 0) kp = k;
         if (slots[k].sign < 0 && kn < 0) kn = k;
       }
-      if (kp >= 0 && kn >= 0 && std::abs(slots[kp].u - slots[kn].u) <= pair_span_) {
+      if (kp >= 0 && kn >= 0 && std::abs(slots[kp].u - slots[kn].u) <= pair_span_ &&
+          std::min(slots[kp].strength, slots[kn].strength) >= p_.pair_min_ratio * std::max(slots[kp].strength, slots[kn].strength)) {
         const Edgel& a = slots[kp];
         const Edgel& b = slots[kn];
         const int col = (a.col + b.col) / 2;

@@ -17,6 +17,8 @@ ParamRegistry make_registry(CycleParams& p) {
         "noise level also from the gradient's deviation from the rows' shared profile, times this (a blurred edge is not noise; 0: off)");
   r.add("track.ramp_min_width", &t.ramp_min_width, 0, 100, "px",
         "a gradient plateau this wide (a blurred edge) is located at its centroid, once (0: off)");
+  r.add("track.pair_min_ratio", &t.pair_min_ratio, 0.0, 1.0, "",
+        "a pair's two edges make its centre when the weaker is at least this fraction of the stronger (cycle.pair_span)");
   r.add("track.min_relative_strength", &t.min_relative_strength, 0.0, 1.0, "",
         "inliers weaker than this fraction of the line's mean strength are left out of the fit");
   r.add("track.use_colour_gradient", &t.use_colour_gradient,

@@ -33,6 +33,12 @@ struct LineTrackerParams {
   /// and kept once, not at whichever column the noise raises (0: off). A sharp edge spans about 3
   /// columns, two sharp edges 2 px apart about 5: those keep their peaks.
   int ramp_min_width = 6;
+  /// A pair followed as one (SearchRange::pair_span): a row's two edges of opposite sign make the
+  /// pair's centre only when the weaker is at least this fraction of the stronger; else one edge
+  /// shows and the other is lost in noise or in a face of the same brightness, and the row keeps
+  /// its edges (a still mockup in noise was reported degraded for 4 frames without it; a factor
+  /// 0.5 cost blurred plates, whose two sides differ).
+  float pair_min_ratio = 0.25f;
   /// Inliers weaker than this fraction of the fitted line's mean edge strength are left out of
   /// the final fit (noise on the line where the edge itself is occluded).
   float min_relative_strength = 0.3f;
@@ -146,7 +152,8 @@ struct SearchRange {
   double lo = -1e9, hi = 1e9;
   /// > 0: the window follows a pair of close parallel edges as one (a thin plate, its two edges
   /// closer than the window can split) and measures the centre between them: per row, the
-  /// strongest edge of each sign, when no farther apart than this (pixels), give their midpoint.
+  /// strongest edge of each sign, when no farther apart than this (pixels) and of comparable
+  /// strength (LineTrackerParams::pair_min_ratio), give their midpoint.
   /// Motion blur across a thin plate pushes each of its edges outward by half the blur (each
   /// edge's gradient plateau is the plate's width wide, at the blur's ends); their midpoint stays
   /// on the plate's mid-line. A row without both keeps its edges. The state's polarity and learned
