@@ -2,6 +2,7 @@
 // ViewPredictor, cue integration: an edge not found in the last frame is searched with the colour
 // learned on the same face by an edge that was (CycleParams::share_face_appearance).
 #include <memory>
+#include <string>
 #include <utility>
 
 #include <gtest/gtest.h>
@@ -15,28 +16,16 @@
 namespace v4r::pipeline {
 namespace {
 
-const char* kBox = R"(V1
-8
--0.10 -0.075 -0.05
- 0.10 -0.075 -0.05
- 0.10  0.075 -0.05
--0.10  0.075 -0.05
--0.10 -0.075  0.05
- 0.10 -0.075  0.05
- 0.10  0.075  0.05
--0.10  0.075  0.05
-0
-0
-6
-4 0 3 2 1
-4 4 5 6 7
-4 0 1 5 4
-4 2 3 7 6
-4 1 2 6 5
-4 3 0 4 7
-0
-0
-)";
+/// A box's .cao text: x in [-hx, hx], y in [-hy, hy], z in [z0, z1] (metres), six faces.
+std::string box_cao(double hx, double hy, double z0, double z1) {
+  std::string s = "V1\n8\n";
+  for (const double z : {z0, z1})
+    for (const auto& [sx, sy] : {std::pair{-1, -1}, {1, -1}, {1, 1}, {-1, 1}})
+      s += std::to_string(sx * hx) + " " + std::to_string(sy * hy) + " " + std::to_string(z) + "\n";
+  return s + "0\n0\n6\n4 0 3 2 1\n4 4 5 6 7\n4 0 1 5 4\n4 2 3 7 6\n4 1 2 6 5\n4 3 0 4 7\n0\n0\n";
+}
+
+const std::string kBox = box_cao(0.10, 0.075, -0.05, 0.05);
 
 /// An object of the .cao text `cao` predicted at `T_pred` (no model when it does not parse).
 scene::Object object_from_cao(const char* cao, const char* name, const geometry::SE3& T_pred) {
@@ -70,7 +59,7 @@ scene::View fresh_view(const model::Model& m) {
 }
 
 struct Fixture {
-  scene::Object obj = object_from_cao(kBox, "box.cao", geometry::look_at(0.6, 0.5, 0.6));
+  scene::Object obj = object_from_cao(kBox.c_str(), "box.cao", geometry::look_at(0.6, 0.5, 0.6));
   scene::Camera cam = camera_640x480(600, 600, 319.5, 239.5);
   scene::View view = obj.model ? fresh_view(*obj.model) : scene::View{};
   [[nodiscard]] bool object_side(std::size_t li, int k) const { return view.lines[li].track.side[k].is_object; }
@@ -284,30 +273,9 @@ TEST(ViewPredictor, AThinPlatesEdgeFaceIsMeasuredAsAPairAtItsCentre) {
   // A plate 30 x 20 cm, 1 cm thick, seen from above its top edge face at about 1 m: the face's
   // two long edges 3-4 px apart, tracked as one against their mid-line and measured at the
   // centre between them (cycle.pair_span), as a blurred thin plate needs.
-  const char* plate = R"(V1
-8
--0.15 -0.10 0.00
- 0.15 -0.10 0.00
- 0.15  0.10 0.00
--0.15  0.10 0.00
--0.15 -0.10 0.01
- 0.15 -0.10 0.01
- 0.15  0.10 0.01
--0.15  0.10 0.01
-0
-0
-6
-4 0 3 2 1
-4 4 5 6 7
-4 0 1 5 4
-4 2 3 7 6
-4 1 2 6 5
-4 3 0 4 7
-0
-0
-)";
+  const std::string plate = box_cao(0.15, 0.10, 0.0, 0.01);
   const scene::Object obj = object_from_cao(
-      plate, "plate.cao",
+      plate.c_str(), "plate.cao",
       geometry::look_at(Eigen::Vector3d(0.05, 0.6, 0.9), Eigen::Vector3d(0.0, 0.0, 0.005), Eigen::Vector3d::UnitY()));
   ASSERT_NE(obj.model, nullptr);
   const scene::Camera cam = camera_640x480(600, 600, 319.5, 239.5);
