@@ -500,7 +500,7 @@ int Detector::twin_verdict(const geometry::SE3& T, const geometry::SE3& S, geome
   if (!(rm > 0.0)) return 0;
   geometry::SE3 Ta = T;
   aligner_.refine(pyramid_, Ta);
-  const EdgeAligner::TwinShares u = aligner_.compare_twins(pyramid_, Ta, twin, 2.0 * p_.verify.match_distance_px);
+  const EdgeAligner::TwinShares u = aligner_.compare_twins(pyramid_, Ta, twin, 2.0 * p_.verify.match_distance_px, true);
   if (u.na < kMinDistinct || u.nb < kMinDistinct) return 0;
   if (u.residual_a + rm <= u.residual_b) return 1;
   if (u.residual_b + rm <= u.residual_a) return -1;

@@ -419,14 +419,15 @@ double EdgeAligner::edge_residual(const GradientPyramid& g, const EdgeSample& s)
 }
 
 EdgeAligner::TwinShares EdgeAligner::compare_twins(const GradientPyramid& g, const geometry::SE3& T_a,
-                                                  const geometry::SE3& T_b, double px) {
+                                                  const geometry::SE3& T_b, double px, bool residuals) {
   TwinShares r;
   const int na = verify(g, T_a).samples;
   if (na < p_.min_samples) return r;  // (verify matched none of them)
   for (int i = 0; i < na; ++i) {
     twin_px_[static_cast<std::size_t>(i)] = samples_[static_cast<std::size_t>(i)].px;
     twin_matched_[static_cast<std::size_t>(i)] = matched_[static_cast<std::size_t>(i)];
-    twin_residual_[static_cast<std::size_t>(i)] = static_cast<float>(edge_residual(g, samples_[static_cast<std::size_t>(i)]));
+    if (residuals)
+      twin_residual_[static_cast<std::size_t>(i)] = static_cast<float>(edge_residual(g, samples_[static_cast<std::size_t>(i)]));
   }
   const int nb = verify(g, T_b).samples;
   if (nb < p_.min_samples) return r;
@@ -447,18 +448,20 @@ EdgeAligner::TwinShares EdgeAligner::compare_twins(const GradientPyramid& g, con
     if (near_b(twin_px_[static_cast<std::size_t>(i)])) continue;
     ++r.na;
     ma += twin_matched_[static_cast<std::size_t>(i)];
-    r.residual_a += twin_residual_[static_cast<std::size_t>(i)];
+    if (residuals) r.residual_a += twin_residual_[static_cast<std::size_t>(i)];
   }
   for (int i = 0; i < nb; ++i) {
     if (near_a(samples_[static_cast<std::size_t>(i)].px)) continue;
     ++r.nb;
     mb += matched_[static_cast<std::size_t>(i)];
-    r.residual_b += edge_residual(g, samples_[static_cast<std::size_t>(i)]);
+    if (residuals) r.residual_b += edge_residual(g, samples_[static_cast<std::size_t>(i)]);
   }
   r.a = r.na > 0 ? static_cast<double>(ma) / r.na : 0.0;
   r.b = r.nb > 0 ? static_cast<double>(mb) / r.nb : 0.0;
-  r.residual_a = r.na > 0 ? r.residual_a / r.na : kTwinReachPx;
-  r.residual_b = r.nb > 0 ? r.residual_b / r.nb : kTwinReachPx;
+  if (residuals) {
+    r.residual_a = r.na > 0 ? r.residual_a / r.na : kTwinReachPx;
+    r.residual_b = r.nb > 0 ? r.residual_b / r.nb : kTwinReachPx;
+  }
   return r;
 }
 

@@ -241,7 +241,7 @@ TEST(Detector, OnBlurredImagesASectionAndItsTwinAreToldByTheirEdgesCentres) {
     geometry::SE3 Tr = T, twin = T * near[0];
     aligner.refine(g, Tr);
     aligner.refine(g, twin);
-    const EdgeAligner::TwinShares t = aligner.compare_twins(g, Tr, twin, 2.0 * p.verify.match_distance_px);
+    const EdgeAligner::TwinShares t = aligner.compare_twins(g, Tr, twin, 2.0 * p.verify.match_distance_px, true);
     if (t.na < 8 || t.nb < 8 || std::abs(t.a - t.b) >= p.verify.twin_margin) continue;
     ++undecided;
     told += t.residual_a + p.verify.twin_residual_margin <= t.residual_b ? 1 : 0;

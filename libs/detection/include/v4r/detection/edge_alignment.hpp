@@ -72,11 +72,13 @@ class EdgeAligner {
     int na = 0, nb = 0;       ///< distinctive samples of a, of b
     /// Mean distance (px) from a's distinctive samples, and from b's, to the centre of the
     /// nearest aligned edge along their normals (a blurred edge's plateau at its centroid),
-    /// capped at kTwinReachPx (also when there is none).
+    /// capped at kTwinReachPx (also when there is none). Only with `residuals` (else 0): one
+    /// search along each sample's normal.
     double residual_a = 0.0, residual_b = 0.0;
   };
   static constexpr double kTwinReachPx = 4.0;
-  TwinShares compare_twins(const GradientPyramid& g, const geometry::SE3& T_a, const geometry::SE3& T_b, double px);
+  TwinShares compare_twins(const GradientPyramid& g, const geometry::SE3& T_a, const geometry::SE3& T_b, double px,
+                           bool residuals = false);
 
  private:
   /// The first detect.verify.refine_samples of the sample buffer.

@@ -149,11 +149,11 @@ struct CycleParams {
   /// false: side-by-side edges are neither split nor merged but both left out (within the
   /// tracking window's half width + ambiguity_margin_px).
   bool track_side_by_side = true;
-  /// A pair tracked as one (closer than twice split_min_px) across a thin face is measured at the centre between its
-  /// two edges: per window row, the strongest edge of each sign, at most this many pixels apart
-  /// (or the pair's predicted separation + 2, if more), give their midpoint
-  /// (features::SearchRange::pair_span); motion blur across a thin plate pushes its two edges
-  /// apart by the blur's length, their midpoint stays. 0: the pair's visible edge is measured.
+  /// A pair tracked as one (closer than twice split_min_px) across a thin face is measured at
+  /// the centre between its two edges: per window row, the strongest edge of each sign, at most
+  /// this many pixels apart (or the pair's predicted separation + 2, if more), give their
+  /// midpoint (features::SearchRange::pair_span); motion blur across a thin plate pushes its two
+  /// edges apart by the blur's length, their midpoint stays. 0: the pair's visible edge is measured.
   double pair_span_px = 12.0;
   /// ... when the face between them is thin: the edges' distance in the model at most this share
   /// of their length (a plate's edge face; not a box's side seen edge-on, whose texture would
