@@ -478,6 +478,7 @@ int LineTracker::extract_edgels(int want, bool cues, int* rejected) {
     // A pair followed as one: the strongest edgel of each sign (the slots are sorted by
     // strength), close enough and of comparable strength, make one at their midpoint; its sign
     // tells the order across the window (+1: the positive edge first, a bright bar on this row).
+    bool paired = false;
     if (pair_span_ > 0.0f && count >= 2) {
       int kp = -1, kn = -1;
       for (int k = 0; k < count; ++k) {
@@ -491,8 +492,10 @@ int LineTracker::extract_edgels(int want, bool cues, int* rejected) {
         const int col = (a.col + b.col) / 2;
         slots[0] = Edgel{0.5f * (a.u + b.u), a.v, std::min(a.strength, b.strength), a.u < b.u ? 1 : -1, i, col};
         count = 1;
+        paired = true;
       }
     }
+    if (pairs_only_ && !paired) count = 0;
     row_count_[i] = count;
     for (int k = 0; k < count; ++k) {
       pool_[pool_size] = i * k_max + k;
@@ -712,8 +715,19 @@ LineMeasurement LineTracker::track(const image::ImageView& img, const Segment2& 
   }
   if (valid_rows < kMinInliers) return m;
   grey_gradient();
-  if (pair) {  // (the pair's centre: grey gradient only, no cues, nothing learned)
+  if (pair) {
+    // The pair's centre: no cues, nothing learned; on a colour image, when the grey gradient
+    // shows no pair, on the colour gradient (a plate between surfaces of its own brightness).
     detect(0, false, valid_rows, m, false);
+    float axis[3];
+    if (!m.found && colour_ != nullptr && p_.use_colour_gradient && colour_gradient(state, axis)) {
+      m = LineMeasurement{};
+      m.threshold = thr_;
+      pairs_only_ = true;  // (single colour edges: mostly the chroma noise of grey faces)
+      detect(0, false, valid_rows, m, false);
+      pairs_only_ = false;
+      m.colour_gradient = m.found;
+    }
     return m;
   }
 

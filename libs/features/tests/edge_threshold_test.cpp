@@ -151,5 +151,44 @@ TEST(EdgeThreshold, IsoluminantColourEdgeIsFoundOnTheColourGradient) {
   EXPECT_LE(err.max, 0.5);
 }
 
+TEST(EdgeThreshold, AnIsoluminantThinPlatesPairIsMeasuredAtItsMidLineOnTheColourGradient) {
+  // A green plate 4 px wide against a purple-grey ground of its brightness, followed as a pair
+  // (SearchRange::pair_span): the grey gradient shows neither edge; the colour gradient shows
+  // both, of opposite sign, and their centre is the plate's mid-line.
+  const Bgr green{56.f, 148.f, 69.f};
+  const Bgr purple{120.f, 104.f, 128.f};
+  std::mt19937 rng(25);
+  std::uniform_real_distribution<double> angle(0.0, kPi), uni(-1.0, 1.0);
+  LineTracker tracker;
+  int grey_found = 0, found = 0, by_colour_gradient = 0;
+  ErrorStats err;
+  constexpr int kCases = 40;
+  for (int k = 0; k < kCases; ++k) {
+    const TrueLine mid{{kW / 2.0 + 0.5 * uni(rng), kH / 2.0 + 0.5 * uni(rng)}, dir(angle(rng))};
+    Canvas c(kW, kH, purple);
+    c.half_plane(mid.p - 2.0 * mid.normal(), mid.normal(), green);
+    c.half_plane(mid.p + 2.0 * mid.normal(), mid.normal(), purple);
+    const ColourFrame frame(c, 3.0, 600 + k);
+    const Segment2 pred = segment(mid.p + uni(rng) * mid.normal(), mid.t, 120.0);  // within 1 px
+    SearchRange pair;
+    pair.pair_span = 12.0;
+    LineTrackState s_grey, s_colour;
+    grey_found += tracker.track(frame.grey_view(), pred, s_grey, nullptr, pair).found ? 1 : 0;
+    const image::ColourView view = frame.colour();
+    const LineMeasurement m = tracker.track(frame.grey_view(), pred, s_colour, &view, pair);
+    if (!m.found) continue;
+    ++found;
+    by_colour_gradient += m.colour_gradient ? 1 : 0;
+    err.add(mid.error(m.line));
+  }
+  std::printf("[isoluminant pair] grey only %d/%d  with colour %d/%d (%d on the colour gradient)  from the mid-line mean "
+              "%.3f max %.3f px\n",
+              grey_found, kCases, found, kCases, by_colour_gradient, err.mean(), err.max);
+  EXPECT_LE(grey_found, kCases / 4);  // the grey image alone does not hold the pair
+  EXPECT_EQ(found, kCases);
+  EXPECT_EQ(by_colour_gradient, kCases);
+  EXPECT_LE(err.max, 0.5);
+}
+
 }  // namespace
 }  // namespace v4r::features

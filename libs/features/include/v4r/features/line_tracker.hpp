@@ -157,7 +157,9 @@ struct SearchRange {
   /// Motion blur across a thin plate pushes each of its edges outward by half the blur (each
   /// edge's gradient plateau is the plate's width wide, at the blur's ends); their midpoint stays
   /// on the plate's mid-line. A row without both keeps its edges. The state's polarity and learned
-  /// sides are neither used nor updated (they are the single edge's).
+  /// sides are neither used nor updated (they are the single edge's). On a colour image, a window
+  /// whose grey gradient shows no pair searches the colour gradient (a plate of its
+  /// surroundings' brightness).
   double pair_span = 0.0;
 };
 
@@ -270,6 +272,7 @@ class LineTracker {
   SideCheck check_[2];
   bool chroma_only_ = false;  // appearance_ok checks chromaticity only (a fallback's search)
   float pair_span_ = 0.0f;    // SearchRange::pair_span of the current track() call
+  bool pairs_only_ = false;   // a pair window on the colour gradient: rows without a pair give no edgel
   // Silhouette edges (outside_distinct_k): candidates whose band on side `side` has the object
   // side's chromaticity (mean, tol) are rejected.
   struct OutsideCheck {
