@@ -264,7 +264,10 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
     return (T.translation() - T_other.translation()).norm() <= factor * p_.confirm_translation_m &&
            geometry::rotation_angle_between(T, T_other) <= factor * p_.confirm_rotation_deg * kDeg;
   };
-  const auto consider = [&](geometry::SE3 T, bool local, double accept, bool by_colour = false, bool degraded_ok = false) {
+  // A pose refined and, if accepted at the share `accept`, kept with the share its confirmation
+  // needs (`confirm_at`; < 0: `accept`).
+  const auto consider = [&](geometry::SE3 T, bool local, double accept, bool by_colour = false, bool degraded_ok = false,
+                            double confirm_at = -1.0) {
     if (stop.stop_requested()) {  // shutting down: the hypotheses left are not refined
       rep.cancelled = true;
       return -1.0;
@@ -279,7 +282,7 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
       ++rep.tag_vetoed;
     }
     if (e >= 0.0 && accepted_.size() < accepted_.capacity())
-      accepted_.push_back({T, e, last_evidence_, last_leak_, last_leak_samples_, local, accept});
+      accepted_.push_back({T, e, last_evidence_, last_leak_, last_leak_samples_, local, confirm_at >= 0.0 ? confirm_at : accept});
     return e;
   };
   // A pose confirmed: the object is `tracking` there from this frame on.
@@ -359,9 +362,7 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
         // tracker like a colour-verified one, and confirmed at the usual share.
         const bool top = k == 0 && r.verified == 0 && p_.top_evidence < p_.accept_evidence && h.verification.score >= p_.top_score;
         const double accept = by_colour ? std::min(p_.stand_out_evidence, p_.accept_evidence) : top ? p_.top_evidence : p_.accept_evidence;
-        const std::size_t before = accepted_.size();
-        consider(h.T_cam_obj, false, accept, by_colour || top);
-        if (top && accepted_.size() > before) accepted_.back().accept = p_.accept_evidence;
+        consider(h.T_cam_obj, false, accept, by_colour || top, false, top ? p_.accept_evidence : -1.0);
       }
       if (p_.template_starts)
         for (int k = 0; k < n; ++k) consider(hyp_[static_cast<std::size_t>(k)].T_template, false, p_.accept_evidence);

@@ -165,7 +165,7 @@ struct FoundPose {
   double leak = -1.0;     ///< share of its outline's outside colour samples like the object's (< 0: none)
   int leak_samples = 0;   ///< colour samples of the leak
   bool local = false;     ///< a restart around the last pose (else a candidate, tag or detector pose)
-  double accept = 0.0;    ///< the evidence share it was accepted at
+  double accept = 0.0;    ///< the evidence share its confirmation on the next frame needs (less confirm_margin)
 };
 
 /// \brief What the choice among found poses knows of the object (see choose_found_pose).
