@@ -115,11 +115,14 @@ TEST(EdgeThreshold, EdgeBlurredOverMostOfTheWindowIsFoundAtItsCentre) {
   EXPECT_LE(old_good, kCases / 2);
 }
 
+/// A green face and a purple-grey ground of the same brightness (grey levels within 3).
+const Bgr kGreen{56.f, 148.f, 69.f};
+const Bgr kPurple{120.f, 104.f, 128.f};
+
 TEST(EdgeThreshold, IsoluminantColourEdgeIsFoundOnTheColourGradient) {
   // A green face against a purple-grey background of the same brightness: the grey image shows
   // (almost) no edge; the colour gradient does.
-  const Bgr green{56.f, 148.f, 69.f};
-  const Bgr purple{120.f, 104.f, 128.f};
+  const Bgr green = kGreen, purple = kPurple;
   ASSERT_NEAR(green.grey(), purple.grey(), 3.0);
   std::mt19937 rng(23);
   std::uniform_real_distribution<double> angle(0.0, kPi), offset(-5.0, 5.0);
@@ -155,8 +158,7 @@ TEST(EdgeThreshold, AnIsoluminantThinPlatesPairIsMeasuredAtItsMidLineOnTheColour
   // A green plate 4 px wide against a purple-grey ground of its brightness, followed as a pair
   // (SearchRange::pair_span): the grey gradient shows neither edge; the colour gradient shows
   // both, of opposite sign, and their centre is the plate's mid-line.
-  const Bgr green{56.f, 148.f, 69.f};
-  const Bgr purple{120.f, 104.f, 128.f};
+  const Bgr green = kGreen, purple = kPurple;
   std::mt19937 rng(25);
   std::uniform_real_distribution<double> angle(0.0, kPi), uni(-1.0, 1.0);
   LineTracker tracker;
