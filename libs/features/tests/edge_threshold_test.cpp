@@ -122,8 +122,7 @@ const Bgr kPurple{120.f, 104.f, 128.f};
 TEST(EdgeThreshold, IsoluminantColourEdgeIsFoundOnTheColourGradient) {
   // A green face against a purple-grey background of the same brightness: the grey image shows
   // (almost) no edge; the colour gradient does.
-  const Bgr green = kGreen, purple = kPurple;
-  ASSERT_NEAR(green.grey(), purple.grey(), 3.0);
+  ASSERT_NEAR(kGreen.grey(), kPurple.grey(), 3.0);
   std::mt19937 rng(23);
   std::uniform_real_distribution<double> angle(0.0, kPi), offset(-5.0, 5.0);
   LineTracker tracker;
@@ -132,8 +131,8 @@ TEST(EdgeThreshold, IsoluminantColourEdgeIsFoundOnTheColourGradient) {
   constexpr int kCases = 40;
   for (int k = 0; k < kCases; ++k) {
     const TrueLine truth{{kW / 2.0 + 0.3, kH / 2.0 - 0.2}, dir(angle(rng))};
-    Canvas c(kW, kH, green);
-    c.half_plane(truth.p, truth.normal(), purple);
+    Canvas c(kW, kH, kGreen);
+    c.half_plane(truth.p, truth.normal(), kPurple);
     const ColourFrame frame(c, 3.0, 400 + k);
     const Segment2 pred = segment(truth.p + offset(rng) * truth.normal(), truth.t, 120.0);
     LineTrackState s_grey, s_colour;
@@ -158,7 +157,6 @@ TEST(EdgeThreshold, AnIsoluminantThinPlatesPairIsMeasuredAtItsMidLineOnTheColour
   // A green plate 4 px wide against a purple-grey ground of its brightness, followed as a pair
   // (SearchRange::pair_span): the grey gradient shows neither edge; the colour gradient shows
   // both, of opposite sign, and their centre is the plate's mid-line.
-  const Bgr green = kGreen, purple = kPurple;
   std::mt19937 rng(25);
   std::uniform_real_distribution<double> angle(0.0, kPi), uni(-1.0, 1.0);
   LineTracker tracker;
@@ -167,9 +165,9 @@ TEST(EdgeThreshold, AnIsoluminantThinPlatesPairIsMeasuredAtItsMidLineOnTheColour
   constexpr int kCases = 40;
   for (int k = 0; k < kCases; ++k) {
     const TrueLine mid{{kW / 2.0 + 0.5 * uni(rng), kH / 2.0 + 0.5 * uni(rng)}, dir(angle(rng))};
-    Canvas c(kW, kH, purple);
-    c.half_plane(mid.p - 2.0 * mid.normal(), mid.normal(), green);
-    c.half_plane(mid.p + 2.0 * mid.normal(), mid.normal(), purple);
+    Canvas c(kW, kH, kPurple);
+    c.half_plane(mid.p - 2.0 * mid.normal(), mid.normal(), kGreen);
+    c.half_plane(mid.p + 2.0 * mid.normal(), mid.normal(), kPurple);
     const ColourFrame frame(c, 3.0, 600 + k);
     const Segment2 pred = segment(mid.p + uni(rng) * mid.normal(), mid.t, 120.0);  // within 1 px
     SearchRange pair;
