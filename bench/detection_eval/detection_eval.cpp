@@ -4,7 +4,7 @@
 // the truth (modulo the model's symmetries); false accepts on object-free images (clutter
 // backgrounds, ViSP's Klimt and Solvay photos); median and p95 detection time.
 //
-//   build/bin/v4r_detection_eval [--images N] [--empty N] [--models box,ship,...] [--scenes plain,clutter,...]
+//   build/bin/v4r_detection_eval [--images N] [--seed S] [--empty N] [--models box,ship,...] [--scenes plain,clutter,...]
 //                                [--set detect.x=y --set search.x=y --set cycle.x=y ...]   (V4R_EVAL_DEBUG=1|2|3: per-image diagnosis on stderr)
 //   build/bin/v4r_detection_eval --sponge N   (the colour stage: N sponge images with and without it)
 //   build/bin/v4r_detection_eval --sequences DIR,DIR,... [--every 10]   (frames another renderer made)
@@ -66,6 +66,18 @@ std::shared_ptr<const model::Model> builtin(const std::string& name) {
     return std::make_shared<model::Model>(std::move(*m));
   }
   return nullptr;
+}
+
+/// V4R_EVAL_DEBUG: a found pose in the frame of the truth (its nearest symmetric equivalent):
+/// the shift in object coordinates and the turn, which tell a shift along a repeated structure
+/// from a turned or farther pose.
+std::string offset_from_truth(const geometry::SE3& T_found, const geometry::SE3& T_truth,
+                              const std::vector<geometry::SE3>& sym) {
+  const geometry::SE3 D = nearest_symmetric(T_truth, T_found, sym).inverse() * T_found;
+  const Eigen::AngleAxisd aa(D.rotation());
+  return fmt::format("in the truth's frame shifted ({:.3f}, {:.3f}, {:.3f}) m, turned {:.1f} deg about ({:.2f}, {:.2f}, {:.2f})",
+                     D.translation().x(), D.translation().y(), D.translation().z(), aa.angle() * 57.2958, aa.axis().x(),
+                     aa.axis().y(), aa.axis().z());
 }
 
 /// V4R_EVAL_DEBUG: why one image was or was not detected. The truth's own score (as given and
@@ -389,6 +401,7 @@ int sequence_eval(const std::vector<std::string>& dirs, int every, const Detecto
 
 int main(int argc, char** argv) {
   int images = 40, empty = 100, sponge = 0, every = 10;
+  unsigned seed = 0;
   bool through_search = false;
   std::vector<std::string> sequence_dirs;
   std::string models_arg = "box,ship,flange,section,mesh";
@@ -396,6 +409,7 @@ int main(int argc, char** argv) {
   std::string scenes_arg = "all";
   CLI::App app{"The detector's success, false accepts and time per model and scene condition (issue 10)"};
   app.add_option("--images", images, "images per model and scene condition")->check(CLI::NonNegativeNumber);
+  app.add_option("--seed", seed, "another set of test images (0: the usual one; poses and renders differ with it)");
   app.add_option("--empty", empty, "object-free images for the false accepts")->check(CLI::NonNegativeNumber);
   app.add_option("--models", models_arg, "comma-separated: box, ship, flange, section, mesh");
   app.add_option("--scenes", scenes_arg, "comma-separated: plain, textured, clutter, noise, blur, occlusion30, or all");
@@ -481,8 +495,8 @@ int main(int argc, char** argv) {
     Detector det(m, set, cam, params);
     std::array<Hypothesis, 16> hyp;
     for (std::size_t si = 0; si < scenes.size(); ++si) {
-      if (scenes_arg != "all" && scenes_arg.find(scenes::scene_name(scenes[si])) == std::string::npos) continue;
-      std::mt19937 rng(1000u + static_cast<unsigned>(si) * 77u);
+      if (images == 0 || (scenes_arg != "all" && scenes_arg.find(scenes::scene_name(scenes[si])) == std::string::npos)) continue;
+      std::mt19937 rng(1000u + static_cast<unsigned>(si) * 77u + seed * 7919u);
       int ok = 0, wrong = 0;
       std::vector<double> ms, grad_ms, search_ms, refine_ms;
       // A found pose against the truth T: counted right (within the bounds) or wrong.
@@ -494,7 +508,7 @@ int main(int argc, char** argv) {
       };
       for (int k = 0; k < images; ++k) {
         const geometry::SE3 T = scenes::random_pose(*m, params.views, cam, rng);
-        const cv::Mat img = scenes::render_scene(*m, T, cam, scenes[si], 100u + static_cast<unsigned>(k));
+        const cv::Mat img = scenes::render_scene(*m, T, cam, scenes[si], 100u + static_cast<unsigned>(k) + seed * 100000u);
         if (through_search) {
           const SearchOutcome so = search_still(m, set, cam, params, search, img, cycle);
           ms.push_back(so.ms);
@@ -504,8 +518,8 @@ int main(int argc, char** argv) {
             PoseError e;
             outcome = judge(so.T_cam_obj, T, e);
             if (std::getenv("V4R_EVAL_DEBUG"))
-              fmt::print(stderr, "{} #{}: {} ({:.3f} m {:.1f} deg)\n", scenes::scene_name(scenes[si]), k, outcome, e.translation,
-                         e.rotation * 57.2958);
+              fmt::print(stderr, "{} #{}: {} ({:.3f} m {:.1f} deg; {})\n", scenes::scene_name(scenes[si]), k, outcome, e.translation,
+                         e.rotation * 57.2958, offset_from_truth(so.T_cam_obj, T, sym));
           } else if (std::getenv("V4R_EVAL_DEBUG")) {
             // Beside the search's first frame, what the detector alone makes of the image.
             const DetectionResult r = det.detect(io::as_colour_view(img), hyp);
@@ -516,6 +530,9 @@ int main(int argc, char** argv) {
                        scenes::scene_name(scenes[si]), k, outcome, so.first.tried, so.first.found, so.first.best_evidence,
                        so.second.tried, so.second.found, so.second.best_evidence,
                        r.verified, r.hypotheses > 0 ? hyp[0].verification.score : 0.0, e.translation, e.rotation * 57.2958);
+            for (int h = 0; h < std::min(r.hypotheses, 4); ++h)
+              fmt::print(stderr, "   h{} score {:.2f}{}: {}\n", h, hyp[h].verification.score, hyp[h].verified ? " verified" : "",
+                         offset_from_truth(hyp[h].T_cam_obj, T, sym));
           }
           continue;
         }
