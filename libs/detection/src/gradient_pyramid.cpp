@@ -124,6 +124,28 @@ int quantise_orientation(double x, double y) {
   return b < 0 ? 0 : b;
 }
 
+int quantise_gradient_orientation(int gx, int gy) {
+  static_assert(kOrientations == 8, "the boundaries below are those of 8 bins");
+  if (gy < 0 || (gy == 0 && gx < 0)) {
+    gx = -gx;
+    gy = -gy;
+  }
+  // Angle a in [0, 180) deg reaches boundary k * 22.5 deg when sin(a - k * 22.5 deg) >= 0:
+  // cos_k gy - sin_k gx >= 0. The boundaries at 45, 90 and 135 deg in integers (exact ties).
+  constexpr double c1 = 0.92387953251128674, s1 = 0.38268343236508978;  // 22.5 deg
+  constexpr double c3 = 0.38268343236508984, s3 = 0.92387953251128674;  // 67.5 deg
+  const double x = gx, y = gy;
+  int b = 0;
+  b += c1 * y - s1 * x >= 0.0 ? 1 : 0;
+  b += gy >= gx ? 1 : 0;
+  b += c3 * y - s3 * x >= 0.0 ? 1 : 0;
+  b += gx <= 0 ? 1 : 0;
+  b += -c3 * y - s3 * x >= 0.0 ? 1 : 0;  // 112.5 deg
+  b += gx + gy <= 0 ? 1 : 0;
+  b += -c1 * y - s1 * x >= 0.0 ? 1 : 0;  // 157.5 deg
+  return b;
+}
+
 int orientation_similarity(int a, int b) {
   int d = std::abs(a - b);
   d = std::min(d, kOrientations - d);
@@ -223,7 +245,7 @@ void GradientPyramid::orientations(OrientationLevel& l, int ch, const GradientTh
         l.bits[i] = 0;
         continue;
       }
-      l.bits[i] = static_cast<std::uint8_t>(1u << quantise_orientation(dx, dy));
+      l.bits[i] = static_cast<std::uint8_t>(1u << quantise_gradient_orientation(dx, dy));
     }
   // Spread: OR over (2r+1)^2, separably (rows into spread_bits, then columns in place via a row),
   // over the box grown by r (outside the box the bits are 0).

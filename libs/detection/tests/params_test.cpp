@@ -50,7 +50,18 @@ TEST(Orientation, QuantisesModulo180DegreesIntoEightBins) {
   EXPECT_EQ(quantise_orientation(0, -1), 4);
   EXPECT_EQ(quantise_orientation(1, 1), 2);
   EXPECT_EQ(quantise_orientation(-1, 1), 6);
+  EXPECT_EQ(quantise_gradient_orientation(-1, 1), 6);
+  EXPECT_EQ(quantise_gradient_orientation(3, -1), 7);
   EXPECT_EQ(orientation_similarity(0, 0), 4);
   EXPECT_EQ(orientation_similarity(0, 7), 1);  // neighbours across the wrap
   EXPECT_EQ(orientation_similarity(0, 2), 0);
+}
+
+TEST(Orientation, IntegerGradientsQuantiseAsAtan2Does) {
+  // Every Sobel response of an 8-bit image (|g| <= 4 x 255), boundary ties included.
+  int differ = 0;
+  for (int gx = -1020; gx <= 1020; ++gx)
+    for (int gy = -1020; gy <= 1020; ++gy)
+      if ((gx != 0 || gy != 0) && quantise_gradient_orientation(gx, gy) != quantise_orientation(gx, gy)) ++differ;
+  EXPECT_EQ(differ, 0);
 }

@@ -17,6 +17,10 @@ inline constexpr int kOrientations = 8;
 /// Quantised orientation (0 .. kOrientations-1) of a direction (x, y), modulo 180 degrees:
 /// bin k covers [k, k+1) * 180 / kOrientations degrees.
 int quantise_orientation(double x, double y);
+/// The same for an integer gradient (Sobel responses, |gx|, |gy| <= 4 x 255), without atan2: the
+/// direction is folded into the upper half plane and counted against the seven bin boundaries.
+/// Equal to quantise_orientation(gx, gy) for every such gradient, ties on a boundary included.
+int quantise_gradient_orientation(int gx, int gy);
 
 /// Similarity of two quantised orientations as the response maps score it: 4 when equal, 1 when
 /// neighbours (22.5 degrees apart), else 0.
