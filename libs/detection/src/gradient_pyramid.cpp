@@ -132,17 +132,17 @@ int quantise_gradient_orientation(int gx, int gy) {
   }
   // Angle a in [0, 180) deg reaches boundary k * 22.5 deg when sin(a - k * 22.5 deg) >= 0:
   // cos_k gy - sin_k gx >= 0. The boundaries at 45, 90 and 135 deg in integers (exact ties).
-  constexpr double c1 = 0.92387953251128674, s1 = 0.38268343236508978;  // 22.5 deg
-  constexpr double c3 = 0.38268343236508984, s3 = 0.92387953251128674;  // 67.5 deg
+  // cos and sin of 22.5 deg (the sin and cos of 67.5 deg).
+  constexpr double c = 0.92387953251128674, s = 0.38268343236508978;
   const double x = gx, y = gy;
   int b = 0;
-  b += c1 * y - s1 * x >= 0.0 ? 1 : 0;
-  b += gy >= gx ? 1 : 0;
-  b += c3 * y - s3 * x >= 0.0 ? 1 : 0;
-  b += gx <= 0 ? 1 : 0;
-  b += -c3 * y - s3 * x >= 0.0 ? 1 : 0;  // 112.5 deg
-  b += gx + gy <= 0 ? 1 : 0;
-  b += -c1 * y - s1 * x >= 0.0 ? 1 : 0;  // 157.5 deg
+  b += c * y - s * x >= 0.0 ? 1 : 0;   // 22.5 deg
+  b += gy >= gx ? 1 : 0;               // 45
+  b += s * y - c * x >= 0.0 ? 1 : 0;   // 67.5
+  b += gx <= 0 ? 1 : 0;                // 90
+  b += -s * y - c * x >= 0.0 ? 1 : 0;  // 112.5
+  b += gx + gy <= 0 ? 1 : 0;           // 135
+  b += -c * y - s * x >= 0.0 ? 1 : 0;  // 157.5
   return b;
 }
 
