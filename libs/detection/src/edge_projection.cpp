@@ -221,25 +221,39 @@ std::size_t EdgeProjector::sample(const geometry::SE3& T, const geometry::Pinhol
   if (total <= 0.0) return 0;
   const double spacing = std::max(spacing_px, total / static_cast<double>(out.size()) * 1.0001);
   const bool bounds = margin_px >= 0.0;
+  const bool distorted = cam.has_distortion();
   std::size_t count = 0;
   for (std::size_t pi = 0; pi < pieces_.size() && count < out.size(); ++pi) {
     const Piece& pc = pieces_[pi];
     const int n = static_cast<int>(piece_len_[pi] / spacing);
     if (n <= 0) continue;
     collect_occluders(piece_lo_[pi], piece_hi_[pi], pc.face_a, pc.face_b);
+    // A straight piece wholly in front of the camera: its points interpolated in the camera
+    // frame, its projection's tangent from the derivative of the projection along it (a
+    // curve's by a small step along it).
+    const Eigen::Vector3d Ca = T * pc.a, D = T.rotation() * (pc.b - pc.a);
+    const bool straight = pc.arc < 0 && Ca.z() > 1e-6 && Ca.z() + D.z() > 1e-6;
     for (int k = 0; k < n && count < out.size(); ++k) {
       const double s = (k + 0.5) / n;
       const Eigen::Vector3d X = piece_point(pc, s);
-      const Eigen::Vector3d Xc = T * X;
+      const Eigen::Vector3d Xc = straight ? Eigen::Vector3d(Ca + s * D) : Eigen::Vector3d(T * X);
       if (Xc.z() <= 1e-6) continue;
       const Eigen::Vector2d px = cam.project(Xc);
       if (bounds && !cam.in_image(px, margin_px)) continue;
       if (hidden(Xc, pc.cylinder)) continue;
-      // Tangent of the projected curve by a small step along it.
-      const double ds = 0.25 / std::max(1, n);
-      const Eigen::Vector3d Xa = T * piece_point(pc, s - ds), Xb = T * piece_point(pc, s + ds);
-      if (Xa.z() <= 1e-6 || Xb.z() <= 1e-6) continue;
-      Eigen::Vector2d tan = cam.project(Xb) - cam.project(Xa);
+      Eigen::Vector2d tan;
+      if (straight) {
+        const double iz = 1.0 / Xc.z();
+        const Eigen::Vector2d q(Xc.x() * iz, Xc.y() * iz);
+        Eigen::Vector2d dq((D.x() - q.x() * D.z()) * iz, (D.y() - q.y() * D.z()) * iz);
+        if (distorted) dq = cam.distort_jacobian(q) * dq;
+        tan = Eigen::Vector2d(cam.fx * dq.x(), cam.fy * dq.y());
+      } else {
+        const double ds = 0.25 / std::max(1, n);
+        const Eigen::Vector3d Xa = T * piece_point(pc, s - ds), Xb = T * piece_point(pc, s + ds);
+        if (Xa.z() <= 1e-6 || Xb.z() <= 1e-6) continue;
+        tan = cam.project(Xb) - cam.project(Xa);
+      }
       const double tl = tan.norm();
       if (!(tl > 1e-9)) continue;
       tan /= tl;

@@ -59,6 +59,32 @@ TEST(EdgeProjector, NormalsArePerpendicularToTheProjectedEdges) {
   }
 }
 
+TEST(EdgeProjector, NormalsAreExactOnADistortedCameraToo) {
+  // Each sample's pixel is its point projected, and its normal is perpendicular to the projected
+  // edge there, curved by the lens (the straight edge's tangent from a small step along it).
+  const model::Model box = load(synth::box_cao());
+  for (const double k1 : {0.0, -0.3}) {
+    geometry::PinholeCamera cam = synth::default_camera();
+    cam.dist = {k1, 0.08, 0.001, -0.002, 0.0};
+    if (k1 == 0.0) cam.dist = {0, 0, 0, 0, 0};
+    const geometry::SE3 T = geometry::look_at(0.45, 0.4, 0.5);
+    EdgeProjector proj(box, 0.17);
+    std::vector<EdgeSample> s(600);
+    const std::size_t n = proj.sample(T, cam, 3.0, s);
+    ASSERT_GT(n, 100u);
+    int checked = 0;
+    for (std::size_t i = 0; i + 1 < n; ++i) {
+      EXPECT_LT((cam.project(T * s[i].p_obj) - s[i].px).norm(), 1e-9);
+      if (s[i].piece != s[i + 1].piece) continue;
+      const Eigen::Vector3d d = (s[i + 1].p_obj - s[i].p_obj).normalized() * 1e-6;  // along the straight edge
+      const Eigen::Vector2d tan = (cam.project(T * (s[i].p_obj + d)) - cam.project(T * (s[i].p_obj - d))).normalized();
+      EXPECT_LT(std::abs(tan.dot(s[i].normal)), 1e-6) << "k1 " << k1 << " sample " << i;
+      ++checked;
+    }
+    EXPECT_GT(checked, 80);
+  }
+}
+
 TEST(EdgeProjector, FlangeShowsCylinderLimbsAndHidesTheBackOfTheBottomRim) {
   const model::Model flange = load(synth::flange_cao());
   const geometry::PinholeCamera cam = synth::default_camera();

@@ -33,6 +33,19 @@ struct PinholeCamera {
     return {xd, yd};
   }
 
+  /// The derivative of distort() at `xn`: d(distorted) / d(normalised).
+  [[nodiscard]] Eigen::Matrix2d distort_jacobian(const Eigen::Vector2d& xn) const {
+    const double x = xn.x(), y = xn.y();
+    const double r2 = x * x + y * y;
+    const double radial = 1.0 + r2 * (dist[0] + r2 * (dist[1] + r2 * dist[4]));
+    const double dradial = dist[0] + r2 * (2.0 * dist[1] + 3.0 * r2 * dist[4]);  // d radial / d r2
+    const double cross = 2.0 * x * y * dradial + 2.0 * dist[2] * x + 2.0 * dist[3] * y;
+    Eigen::Matrix2d J;
+    J << radial + 2.0 * x * x * dradial + 2.0 * dist[2] * y + 6.0 * dist[3] * x, cross,  //
+        cross, radial + 2.0 * y * y * dradial + 6.0 * dist[2] * y + 2.0 * dist[3] * x;
+    return J;
+  }
+
   /// Normalised (undistorted) coordinates -> pixel.
   [[nodiscard]] Eigen::Vector2d normalized_to_pixel(const Eigen::Vector2d& xn) const {
     const Eigen::Vector2d d = has_distortion() ? distort(xn) : xn;
