@@ -1,5 +1,7 @@
 // v4r - robust model-based object tracking. MIT licence.
 // Edge samples of a projected model: hidden-line removal by faces and cylinders, normals.
+#include <array>
+
 #include <gtest/gtest.h>
 
 #include "v4r/detection/edge_projection.hpp"
@@ -63,10 +65,11 @@ TEST(EdgeProjector, NormalsAreExactOnADistortedCameraToo) {
   // Each sample's pixel is its point projected, and its normal is perpendicular to the projected
   // edge there, curved by the lens (the straight edge's tangent from a small step along it).
   const model::Model box = load(synth::box_cao());
-  for (const double k1 : {0.0, -0.3}) {
+  using Lens = std::array<double, 5>;
+  for (const Lens& lens : {Lens{0, 0, 0, 0, 0}, Lens{-0.3, 0.08, 0.001, -0.002, 0}}) {
     geometry::PinholeCamera cam = synth::default_camera();
-    cam.dist = {k1, 0.08, 0.001, -0.002, 0.0};
-    if (k1 == 0.0) cam.dist = {0, 0, 0, 0, 0};
+    cam.dist = lens;
+    const double k1 = lens[0];
     const geometry::SE3 T = geometry::look_at(0.45, 0.4, 0.5);
     EdgeProjector proj(box, 0.17);
     std::vector<EdgeSample> s(600);
