@@ -222,6 +222,7 @@ std::size_t EdgeProjector::sample(const geometry::SE3& T, const geometry::Pinhol
   const double spacing = std::max(spacing_px, total / static_cast<double>(out.size()) * 1.0001);
   const bool bounds = margin_px >= 0.0;
   const bool distorted = cam.has_distortion();
+  const Eigen::Matrix3d R = T.rotation();
   std::size_t count = 0;
   for (std::size_t pi = 0; pi < pieces_.size() && count < out.size(); ++pi) {
     const Piece& pc = pieces_[pi];
@@ -231,8 +232,10 @@ std::size_t EdgeProjector::sample(const geometry::SE3& T, const geometry::Pinhol
     // A straight piece wholly in front of the camera: its points interpolated in the camera
     // frame, its projection's tangent from the derivative of the projection along it (a
     // curve's by a small step along it).
-    const Eigen::Vector3d Ca = T * pc.a, D = T.rotation() * (pc.b - pc.a);
-    const bool straight = pc.arc < 0 && Ca.z() > 1e-6 && Ca.z() + D.z() > 1e-6;
+    const bool line = pc.arc < 0;
+    const Eigen::Vector3d Ca = line ? Eigen::Vector3d(T * pc.a) : Eigen::Vector3d::Zero();
+    const Eigen::Vector3d D = line ? Eigen::Vector3d(R * (pc.b - pc.a)) : Eigen::Vector3d::Zero();
+    const bool straight = line && Ca.z() > 1e-6 && Ca.z() + D.z() > 1e-6;
     for (int k = 0; k < n && count < out.size(); ++k) {
       const double s = (k + 0.5) / n;
       const Eigen::Vector3d X = piece_point(pc, s);
