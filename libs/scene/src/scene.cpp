@@ -1,6 +1,8 @@
 // v4r - robust model-based object tracking. MIT licence.
 #include "v4r/scene/scene.hpp"
 
+#include <algorithm>
+
 #include <fmt/format.h>
 
 namespace v4r::scene {
@@ -64,18 +66,21 @@ void Scene::set_pose(std::size_t object, const geometry::SE3& T_ref_obj) {
   o.filter.reset(T_ref_obj, cov);
   o.smoother.reset(T_ref_obj, cov);
   o.covariance = cov;
+  // Every view starts anew, as if made for this pose (make_view, without allocating): nothing
+  // of a previous pose (face visibility with its hysteresis, pairs, ranges, measurements) carries
+  // over to it.
   for (View& v : o.views) {
     v.T_cam_obj = cameras_[v.camera].T_ref_cam.inverse() * T_ref_obj;
-    for (LineFeature& f : v.lines) {
-      f.status = FeatureStatus::kNotFound;
-      f.track = {};
-      f.frames_missing = 0;
+    for (std::size_t i = 0; i < v.lines.size(); ++i) {
+      v.lines[i] = LineFeature{};
+      v.lines[i].edge = static_cast<model::Index>(i);
     }
-    for (ArcFeature& a : v.arcs) {
-      a.status = FeatureStatus::kNotFound;
-      a.track = {};
-      a.frames_missing = 0;
+    for (std::size_t i = 0; i < v.arcs.size(); ++i) {
+      v.arcs[i] = ArcFeature{};
+      v.arcs[i].arc = static_cast<model::Index>(i);
     }
+    std::fill(v.face_visible.begin(), v.face_visible.end(), std::uint8_t{0});
+    v.evidence_samples = v.evidence_matched = v.leak_samples = v.leak_matched = 0;
   }
 }
 

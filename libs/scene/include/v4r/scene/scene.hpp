@@ -168,7 +168,9 @@ class Scene {
   bool replace_model(std::size_t object, std::shared_ptr<const model::Model> model);
   /// Removes an object (later objects move down by one); false if there is none at `object`.
   bool remove_object(std::size_t object);
-  /// Sets the pose of an object in the reference frame and (re)starts its tracking.
+  /// Sets the pose of an object in the reference frame and (re)starts its tracking: its filters,
+  /// status and every view start anew (as made for this pose: no edge keeps a measurement, a
+  /// learned polarity or appearance, no face its visibility from an earlier pose). Allocates nothing.
   void set_pose(std::size_t object, const geometry::SE3& T_ref_obj);
   /// Marks an object as searched for (kSearching): it keeps no pose and the vision cycle leaves
   /// it to the search until a pose is set (set_pose).
