@@ -18,14 +18,33 @@ const char* to_string(TrackStatus s) {
   return "unknown";
 }
 
+namespace {
+
+/// A view's features and faces as at its start: each line and arc of the model in its own index,
+/// nothing found, measured or learned, no face visible yet (the view's sizes are kept: no
+/// allocation).
+void start_anew(View& v) {
+  for (std::size_t i = 0; i < v.lines.size(); ++i) {
+    v.lines[i] = LineFeature{};
+    v.lines[i].edge = static_cast<model::Index>(i);
+  }
+  for (std::size_t i = 0; i < v.arcs.size(); ++i) {
+    v.arcs[i] = ArcFeature{};
+    v.arcs[i].arc = static_cast<model::Index>(i);
+  }
+  std::fill(v.face_visible.begin(), v.face_visible.end(), std::uint8_t{0});
+  v.evidence_samples = v.evidence_matched = v.leak_samples = v.leak_matched = 0;
+}
+
+}  // namespace
+
 View Scene::make_view(std::size_t camera, const model::Model& model) {
   View v;
   v.camera = camera;
   v.lines.resize(model.lines().size());
-  for (std::size_t i = 0; i < v.lines.size(); ++i) v.lines[i].edge = static_cast<model::Index>(i);
   v.arcs.resize(model.arcs().size());
-  for (std::size_t i = 0; i < v.arcs.size(); ++i) v.arcs[i].arc = static_cast<model::Index>(i);
-  v.face_visible.assign(model.faces().size(), 0);
+  v.face_visible.resize(model.faces().size());
+  start_anew(v);
   return v;
 }
 
@@ -66,21 +85,11 @@ void Scene::set_pose(std::size_t object, const geometry::SE3& T_ref_obj) {
   o.filter.reset(T_ref_obj, cov);
   o.smoother.reset(T_ref_obj, cov);
   o.covariance = cov;
-  // Every view starts anew, as if made for this pose (make_view, without allocating): nothing
-  // of a previous pose (face visibility with its hysteresis, pairs, ranges, measurements) carries
-  // over to it.
+  // Every view starts anew, as if made for this pose (make_view): nothing of a previous pose
+  // (face visibility with its hysteresis, pairs, ranges, measurements) carries over to it.
   for (View& v : o.views) {
+    start_anew(v);
     v.T_cam_obj = cameras_[v.camera].T_ref_cam.inverse() * T_ref_obj;
-    for (std::size_t i = 0; i < v.lines.size(); ++i) {
-      v.lines[i] = LineFeature{};
-      v.lines[i].edge = static_cast<model::Index>(i);
-    }
-    for (std::size_t i = 0; i < v.arcs.size(); ++i) {
-      v.arcs[i] = ArcFeature{};
-      v.arcs[i].arc = static_cast<model::Index>(i);
-    }
-    std::fill(v.face_visible.begin(), v.face_visible.end(), std::uint8_t{0});
-    v.evidence_samples = v.evidence_matched = v.leak_samples = v.leak_matched = 0;
   }
 }
 
