@@ -573,7 +573,9 @@ int main(int argc, char** argv) {
       if (img.empty()) continue;
       if (through_search) {
         ++n;
-        fa += search_still(ms.first, ms.second, cam, params, search, img, cycle).locked ? 1 : 0;
+        const bool locked = search_still(ms.first, ms.second, cam, params, search, img, cycle).locked;
+        fa += locked ? 1 : 0;
+        if (locked && std::getenv("V4R_EVAL_DEBUG")) fmt::print(stderr, "empty #{} (kind {}): locked\n", k, kind);
         continue;
       }
       const DetectionResult r = det.detect(io::as_colour_view(img), hyp);
