@@ -2,6 +2,7 @@
 #include "v4r/pipeline/object_search.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 
 #include "v4r/detection/symmetry.hpp"
@@ -74,6 +75,11 @@ void add_search_params(ParamRegistry& r, ObjectSearchParams& p) {
         "when the frame's own search finds it again within the limits (<= 1: off)");
   r.add("search.rank_evidence_power", &p.rank_evidence_power, 0.0, 10.0, "",
         "found poses are ranked by their confirmed edge samples times their evidence share to this power");
+  r.add("search.consensus_candidates", &p.consensus_candidates, 0, 64, "",
+        "with no pose accepted, a pose held at search.consensus_evidence is accepted when starts from this many of the "
+        "detector's candidates end on it (< 2: off)");
+  r.add("search.consensus_evidence", &p.consensus_evidence, 0.0, 1.0, "",
+        "... the share of its edge samples confirmed it needs, on the frame found and the next");
   r.add("search.nested_leak_margin", &p.nested_leak_margin, 0.0, 1.0, "",
         "of two poses found over the same place, one whose outline leaks the object's colours by this share more is dropped (1: off)");
   r.add("search.background", &p.background,
@@ -87,6 +93,7 @@ ObjectSearch::ObjectSearch(const CycleParams& cycle, const ObjectSearchParams& p
   // Every pose one search frame can accept: the candidate, two tag poses, the restarts around
   // two centres (at most 9 each) and the detector's hypotheses (refined and their templates).
   accepted_.reserve(1 + 2 + 2 * 9 + 2 * hyp_.size());
+  refined_.reserve(2 * hyp_.size());  // (at most 64 candidates: take_consensus counts them in 64 bits)
 }
 
 void ObjectSearch::add_object(const scene::Scene& scene, std::size_t object,
@@ -201,6 +208,8 @@ double ObjectSearch::refine(std::size_t object, const CameraImage& img, double s
   for (const scene::View& v : o.views) matched += v.evidence_matched;
   const double rms = probe_.last_report().objects[object].rms_px;
   const double rank = matched * std::pow(o.evidence, p_.rank_evidence_power) / (1.0 + (rms / 1.5) * (rms / 1.5));
+  last_held_ = tracked;
+  last_rank_ = rank;
   last_evidence_ = o.evidence;
   last_leak_ = o.leak;
   last_leak_samples_ = o.leak_samples;
@@ -264,6 +273,8 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
     return (T.translation() - T_other.translation()).norm() <= factor * p_.confirm_translation_m &&
            geometry::rotation_angle_between(T, T_other) <= factor * p_.confirm_rotation_deg * kDeg;
   };
+  int start_candidate = -1;  // >= 0: the poses considered start from this candidate of the detector's (kept in refined_)
+  refined_.clear();
   // A pose refined and, if accepted at the share `accept`, kept with the share its confirmation
   // needs (`confirm_at`; < 0: `accept`).
   const auto consider = [&](geometry::SE3 T, bool local, double accept, bool by_colour = false, bool degraded_ok = false,
@@ -283,6 +294,10 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
     }
     if (e >= 0.0 && accepted_.size() < accepted_.capacity())
       accepted_.push_back({T, e, last_evidence_, last_leak_, last_leak_samples_, local, confirm_at >= 0.0 ? confirm_at : accept});
+    if (start_candidate >= 0 && refined_.size() < refined_.capacity())
+      refined_.push_back({FoundPose{T, last_rank_, last_evidence_, last_leak_, last_leak_samples_, false,
+                                    p_.consensus_evidence + p_.confirm_margin},
+                          last_held_ && (!tag.found || s.tag->corner_offset_px(tag, T) <= p_.tag.max_offset_px), start_candidate});
     return e;
   };
   // A pose confirmed: the object is `tracking` there from this frame on.
@@ -362,10 +377,16 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
         // tracker like a colour-verified one, and confirmed at the usual share.
         const bool top = k == 0 && r.verified == 0 && p_.top_evidence < p_.accept_evidence && h.verification.score >= p_.top_score;
         const double accept = by_colour ? std::min(p_.stand_out_evidence, p_.accept_evidence) : top ? p_.top_evidence : p_.accept_evidence;
+        start_candidate = k;
         consider(h.T_cam_obj, false, accept, by_colour || top, false, top ? p_.accept_evidence : -1.0);
       }
       if (p_.template_starts)
-        for (int k = 0; k < n; ++k) consider(hyp_[static_cast<std::size_t>(k)].T_template, false, p_.accept_evidence);
+        for (int k = 0; k < n; ++k) {
+          start_candidate = k;
+          consider(hyp_[static_cast<std::size_t>(k)].T_template, false, p_.accept_evidence);
+        }
+      start_candidate = -1;
+      if (accepted_.empty()) take_consensus();
     }
   }
   // The highest rank, unless it is nested in another accepted pose (choose_found_pose).
@@ -391,6 +412,22 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
   rep.cancelled = rep.cancelled || stop.stop_requested();
   rep.search_ms = ms_between(t0, Clock::now());
   return rep;
+}
+
+void ObjectSearch::take_consensus() {
+  if (p_.consensus_candidates < 2) return;
+  const auto within = [&](const geometry::SE3& a, const geometry::SE3& b) {
+    return (a.translation() - b.translation()).norm() <= p_.confirm_translation_m &&
+           geometry::rotation_angle_between(a, b) <= p_.confirm_rotation_deg * kDeg;
+  };
+  for (const Refined& a : refined_) {
+    if (!a.held || a.found.evidence < p_.consensus_evidence) continue;
+    std::uint64_t candidates = 0;  // the detector's candidates one of whose starts ends held near a
+    for (const Refined& b : refined_)
+      if (b.held && within(a.found.T_cam_obj, b.found.T_cam_obj)) candidates |= std::uint64_t{1} << b.candidate;
+    if (std::popcount(candidates) >= p_.consensus_candidates && accepted_.size() < accepted_.capacity())
+      accepted_.push_back(a.found);
+  }
 }
 
 SearchStep search_step(const ObjectSearchParams& p, scene::Scene& scene, std::size_t object, int& lost_streak,

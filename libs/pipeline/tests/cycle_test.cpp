@@ -511,6 +511,7 @@ TEST(ObjectSearch, AnObjectThatMovedOnWhileLostIsLookedForWhereItsVelocityTookIt
     pipeline::ObjectSearchParams sp;
     sp.extrapolate_s = extrapolate_s;
     sp.top_evidence = sp.accept_evidence;  // the whole-image search at its usual share only
+    sp.consensus_candidates = 0;
     pipeline::SingleObjectTracker tracker(model, synth::default_camera());
     tracker.enable_search(templates, sp, dp);
     tracker.set_pose(pose(0));
@@ -556,6 +557,7 @@ TEST(ObjectSearch, APartlyOccludedObjectIsFoundAgainAroundItsLastPose) {
     pipeline::ObjectSearchParams sp;
     sp.local_accept_evidence = local_accept;
     sp.top_evidence = sp.accept_evidence;  // the whole-image search at its usual share only
+    sp.consensus_candidates = 0;
     sp.local_frames = local_frames;
     pipeline::SingleObjectTracker tracker(s.model, synth::default_camera());
     tracker.enable_search(templates, sp, dp);

@@ -103,6 +103,16 @@ struct ObjectSearchParams {
   /// samples than the object at a far lower share (a box on clutter: 0.76 against 0.99). 2 let it
   /// win; 4 does not, and ranks a partly hidden object (its share lower) as before; 6 cost those.
   double rank_evidence_power = 4.0;
+  /// With no pose accepted on a search frame, a pose the tracker holds (`tracking`, in the view
+  /// range, not leaking) at consensus_evidence of its samples or more is accepted when starts from
+  /// at least consensus_candidates of the detector's candidates (each refined from its pose and
+  /// from its template's) end on it within the confirm limits, held too; it is confirmed on the
+  /// next frame at that share. A partly hidden object, a third of its edges hidden, is held at
+  /// 0.55-0.6 of its samples, under the share a single start needs (top_evidence, accept_evidence),
+  /// while candidates starting up to 15 degrees off fall into its basin; one clutter rarely draws
+  /// three. < 2: off.
+  int consensus_candidates = 3;
+  double consensus_evidence = 0.55;
   /// Of two poses accepted on one search frame over the same place (each centre within the
   /// model's bounding radius of the other's ray), one whose outline leaks the object's own
   /// colours (features::SilhouetteContrast) by this share more than the other's is dropped: its
@@ -211,7 +221,8 @@ void set_found_pose(scene::Scene& scene, std::size_t object, const geometry::SE3
 /// frames, perturbed restarts around the last pose (accepted at local_accept_evidence); unless one
 /// of them was accepted: (4) the detector's best hypotheses over the whole image
 /// (detection::Detector), from their refined poses and from their templates' poses
-/// (template_starts). Every hypothesis is refined by the tracker itself (a private
+/// (template_starts), and with none of those accepted, a pose several of them end on
+/// (consensus_candidates). Every hypothesis is refined by the tracker itself (a private
 /// VisionCycle run refine_cycles times on it: features not found yet are searched in the wide
 /// window, then tracked in the normal one) and accepted by the cycle's own status test: the
 /// share of the whole projected model's edge samples that the image confirms
@@ -314,9 +325,21 @@ class ObjectSearch {
   std::uint64_t gradients_id_ = 0;     // the call whose image the detector's gradients are of (0: none)
   double last_evidence_ = 0.0;
   bool last_degraded_ = false;    // the last refined pose was reported `degraded`
+  bool last_held_ = false;        // the last refined pose was held by the tracker (tracked, see refine)
+  double last_rank_ = 0.0;        // ... its rank, accepted or not
   double last_leak_ = -1.0;       // the last refined pose's silhouette leak (-1: no colour samples)
   int last_leak_samples_ = 0;
   std::vector<FoundPose> accepted_;  // this frame's accepted poses (capacity fixed at construction)
+  /// This frame's detector starts, refined: where they ended, whether the tracker held them there,
+  /// and the candidate they started from.
+  struct Refined {
+    FoundPose found;
+    bool held = false;
+    int candidate = 0;
+  };
+  std::vector<Refined> refined_;  // (capacity fixed at construction)
+  /// consensus_candidates: adds to accepted_ the held poses enough candidates' starts end on.
+  void take_consensus();
 };
 
 }  // namespace v4r::pipeline
