@@ -348,6 +348,7 @@ TEST(ObjectSearch, AnObjectInHeavySensorNoiseIsAcceptedByTheDetectorsEdgeTest) {
   const auto first_tracking = [&](double edge_test_evidence) {
     pipeline::ObjectSearchParams sp;
     sp.edge_test_evidence = edge_test_evidence;
+    sp.consensus_candidates = 0;  // (or the pose several of the detector's candidates end on)
     pipeline::SingleObjectTracker tracker(s.model, synth::default_camera());
     tracker.enable_search(templates, sp, dp);
     tracker.start_search();
