@@ -112,7 +112,7 @@ struct ObjectSearchParams {
   /// while candidates starting up to 15 degrees off fall into its basin; one clutter rarely draws
   /// three. < 2: off.
   int consensus_candidates = 3;
-  double consensus_evidence = 0.55;
+  double consensus_evidence = 0.5;
   /// Of two poses accepted on one search frame over the same place (each centre within the
   /// model's bounding radius of the other's ray), one whose outline leaks the object's own
   /// colours (features::SilhouetteContrast) by this share more than the other's is dropped: its
