@@ -30,6 +30,13 @@ CycleParams probe_params(const CycleParams& c) {
   return p;
 }
 
+/// Pose T within `factor` times the search's confirm limits of T_other.
+bool within_confirm_limits(const ObjectSearchParams& p, const geometry::SE3& T, const geometry::SE3& T_other,
+                           double factor) {
+  return (T.translation() - T_other.translation()).norm() <= factor * p.confirm_translation_m &&
+         geometry::rotation_angle_between(T, T_other) <= factor * p.confirm_rotation_deg * kDeg;
+}
+
 }  // namespace
 
 void add_search_params(ParamRegistry& r, ObjectSearchParams& p) {
@@ -268,10 +275,8 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
   accepted_.clear();
   // The object's tag, if given and seen: a pose of the object must put it where it is seen.
   const detection::TagObservation tag = s.tag ? s.tag->detect(img.grey) : detection::TagObservation{};
-  // Within `factor` times the confirm limits of a pose.
   const auto within = [&](const geometry::SE3& T, const geometry::SE3& T_other, double factor) {
-    return (T.translation() - T_other.translation()).norm() <= factor * p_.confirm_translation_m &&
-           geometry::rotation_angle_between(T, T_other) <= factor * p_.confirm_rotation_deg * kDeg;
+    return within_confirm_limits(p_, T, T_other, factor);
   };
   int start_candidate = -1;  // >= 0: the poses considered start from this candidate of the detector's (kept in refined_)
   refined_.clear();
@@ -288,7 +293,9 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
     double e = refine(object, img, stamp_s, T, accept, degraded_ok);
     // A pose verified by its colour, accepted below the usual share: the refinement must keep it.
     if (e >= 0.0 && by_colour && last_evidence_ < p_.accept_evidence && !within(T, T_start, 1.0)) e = -1.0;
-    if (e >= 0.0 && tag.found && s.tag->corner_offset_px(tag, T) > p_.tag.max_offset_px) {
+    // With the tag seen, the pose must put it where it is seen.
+    const bool tag_ok = !tag.found || s.tag->corner_offset_px(tag, T) <= p_.tag.max_offset_px;
+    if (e >= 0.0 && !tag_ok) {
       e = -1.0;
       ++rep.tag_vetoed;
     }
@@ -297,7 +304,7 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
     if (start_candidate >= 0 && refined_.size() < refined_.capacity())
       refined_.push_back({FoundPose{T, last_rank_, last_evidence_, last_leak_, last_leak_samples_, false,
                                     p_.consensus_evidence + p_.confirm_margin},
-                          last_held_ && (!tag.found || s.tag->corner_offset_px(tag, T) <= p_.tag.max_offset_px), start_candidate});
+                          last_held_ && tag_ok, start_candidate});
     return e;
   };
   // A pose confirmed: the object is `tracking` there from this frame on.
@@ -416,15 +423,11 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
 
 void ObjectSearch::take_consensus() {
   if (p_.consensus_candidates < 2) return;
-  const auto within = [&](const geometry::SE3& a, const geometry::SE3& b) {
-    return (a.translation() - b.translation()).norm() <= p_.confirm_translation_m &&
-           geometry::rotation_angle_between(a, b) <= p_.confirm_rotation_deg * kDeg;
-  };
   for (const Refined& a : refined_) {
     if (!a.held || a.found.evidence < p_.consensus_evidence) continue;
     std::uint64_t candidates = 0;  // the detector's candidates one of whose starts ends held near a
     for (const Refined& b : refined_)
-      if (b.held && within(a.found.T_cam_obj, b.found.T_cam_obj)) candidates |= std::uint64_t{1} << b.candidate;
+      if (b.held && within_confirm_limits(p_, a.found.T_cam_obj, b.found.T_cam_obj, 1.0)) candidates |= std::uint64_t{1} << b.candidate;
     if (std::popcount(candidates) >= p_.consensus_candidates && accepted_.size() < accepted_.capacity())
       accepted_.push_back(a.found);
   }
