@@ -18,6 +18,15 @@ struct CliRun {
   std::string out, err;
 };
 
+/// \brief A broken scene file (`text`, the case `what`) as the command line must report it: a
+/// non-zero exit and an error naming the file, the `line` and the `field`.
+struct BadScene {
+  const char* what;
+  std::string text;
+  int line;
+  const char* field;
+};
+
 /// The whole content of a file (empty when it cannot be read).
 inline std::string slurp(const std::filesystem::path& p) {
   std::ifstream f(p, std::ios::binary);

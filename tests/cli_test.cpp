@@ -38,8 +38,6 @@ class Cli : public ::testing::Test {
   static inline fs::path dir_;
 };
 
-}  // namespace
-
 TEST_F(Cli, RenderWritesSequenceWithGroundTruth) {
   for (const char* f : {"gt.csv", "camera.yaml", "init_pose.txt", "model.cao", "frames/000000.png", "frames/000007.png"})
     EXPECT_TRUE(fs::exists(seq(f))) << f;
@@ -201,3 +199,5 @@ TEST_F(Cli, InspectModelWarnsAboutASlightlyWarpedFaceAndRefusesABadlyWarpedOne) 
   r = run("inspect-model --max-off-plane 0.3 " + bad.string());
   EXPECT_EQ(r.code, 0) << r.err;
 }
+
+}  // namespace

@@ -69,8 +69,6 @@ Outcome run(const Case& c, int frames = 120) {
 
 class HardConditions : public ::testing::TestWithParam<Case> {};
 
-}  // namespace
-
 TEST_P(HardConditions, AtLeast95PercentOfFramesWithin5cmAnd5Degrees) {
   const Case& c = GetParam();
   const Outcome o = run(c);
@@ -97,3 +95,5 @@ INSTANTIATE_TEST_SUITE_P(All, HardConditions, ::testing::ValuesIn([] {
                          [](const ::testing::TestParamInfo<Case>& i) {
                            return std::string(i.param.object.name) + "_" + std::string(synth::condition_name(i.param.condition));
                          });
+
+}  // namespace

@@ -128,8 +128,6 @@ class FirstContact : public ::testing::Test {
   static inline fs::path dir_;
 };
 
-}  // namespace
-
 TEST_F(FirstContact, GoodRunHasNoWarningAndTheChecksChangeNothing) {
   const CliRun a = run(track("--init-pose-file " + seq("init_pose.txt"), "good_checked.csv"));
   ASSERT_EQ(a.code, 0) << a.err;
@@ -427,3 +425,5 @@ TEST_F(FirstContact, MistakenStartPoseIsRecoveredByTheSearch) {
   EXPECT_GE(count(csv, ",searching,"), 1u) << csv;
   EXPECT_GE(count(csv, ",tracking,"), 1u) << csv;
 }
+
+}  // namespace

@@ -21,7 +21,7 @@ namespace {
 using v4r_test::CliRun;
 using v4r_test::slurp;
 
-constexpr int kFrames = 20;
+constexpr int kLiveFrames = 20;
 
 class LiveInput : public ::testing::Test {
  protected:
@@ -29,7 +29,7 @@ class LiveInput : public ::testing::Test {
     dir_ = fs::temp_directory_path() / ("v4r_live_test_" + std::to_string(::getpid()));
     fs::remove_all(dir_);
     fs::create_directories(dir_);
-    const CliRun r = run("render --model box --frames " + std::to_string(kFrames) + " --out " + seq(""));
+    const CliRun r = run("render --model box --frames " + std::to_string(kLiveFrames) + " --out " + seq(""));
     ASSERT_EQ(r.code, 0) << r.err;
   }
   static void TearDownTestSuite() { fs::remove_all(dir_); }
@@ -72,8 +72,6 @@ class LiveInput : public ::testing::Test {
   static inline fs::path dir_;
 };
 
-}  // namespace
-
 // A synthetic test pattern at the calibration's size: frames flow through the tracker without any
 // error. The pattern holds no box, so the tracker may lose it (exit 3, said on one line); what
 // must hold is that frames were read and tracked and nothing else went wrong.
@@ -81,7 +79,7 @@ TEST_F(LiveInput, VideoTestSrcPipelineRunsThroughTrack) {
   const int w = camera_field("image_width"), h = camera_field("image_height");
   ASSERT_GT(w, 0);
   ASSERT_GT(h, 0);
-  const std::string pipeline = "gst:videotestsrc is-live=true num-buffers=" + std::to_string(kFrames) +
+  const std::string pipeline = "gst:videotestsrc is-live=true num-buffers=" + std::to_string(kLiveFrames) +
                                " ! video/x-raw,width=" + std::to_string(w) + ",height=" + std::to_string(h) +
                                " ! videoconvert ! appsink";
   const CliRun r = run(track(pipeline, "testsrc.csv"));
@@ -98,7 +96,7 @@ TEST_F(LiveInput, VideoTestSrcPipelineRunsThroughTrack) {
   }
   const auto [rows, lost] = rows_and_lost(dir_ / "testsrc.csv");
   EXPECT_GE(rows, 1);
-  EXPECT_LE(rows, kFrames);
+  EXPECT_LE(rows, kLiveFrames);
   EXPECT_NE(r.out.find("capture times"), std::string::npos) << r.out;
 }
 
@@ -106,7 +104,7 @@ TEST_F(LiveInput, VideoTestSrcPipelineRunsThroughTrack) {
 // camera would deliver them): the box is tracked on every frame the tracker took.
 TEST_F(LiveInput, RenderedSequenceThroughGStreamerIsTracked) {
   const std::string pipeline = "gst:multifilesrc location=" + seq("frames/%06d.png") +
-                               " stop-index=" + std::to_string(kFrames - 1) +
+                               " stop-index=" + std::to_string(kLiveFrames - 1) +
                                " caps=image/png,framerate=30/1 ! pngdec ! identity sleep-time=33333 ! videoconvert ! appsink";
   const CliRun r = run(track(pipeline, "gst.csv"));
   if (gstreamer_missing(r)) {
@@ -115,8 +113,8 @@ TEST_F(LiveInput, RenderedSequenceThroughGStreamerIsTracked) {
   }
   ASSERT_EQ(r.code, 0) << r.err;
   const auto [rows, lost] = rows_and_lost(dir_ / "gst.csv");
-  EXPECT_GE(rows, kFrames / 2) << r.out;
-  EXPECT_LE(rows, kFrames);
+  EXPECT_GE(rows, kLiveFrames / 2) << r.out;
+  EXPECT_LE(rows, kLiveFrames);
   EXPECT_EQ(lost, 0);
 }
 
@@ -135,3 +133,5 @@ TEST_F(LiveInput, EmptyPipelineIsNamed) {
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find("empty GStreamer pipeline"), std::string::npos) << r.err;
 }
+
+}  // namespace

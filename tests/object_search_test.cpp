@@ -16,6 +16,7 @@
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
 
+#include "../libs/detection/tests/degrees.hpp"
 #include "../libs/detection/tests/detection_scenes.hpp"
 #include "test_objects.hpp"
 #include "v4r/detection/symmetry.hpp"
@@ -29,8 +30,6 @@ using namespace v4r;
 namespace sc = v4r::detection::scenes;
 
 namespace {
-
-constexpr double kDeg = 3.14159265358979323846 / 180.0;
 
 struct Frame {
   cv::Mat image;

@@ -27,6 +27,7 @@ using namespace v4r;
 
 namespace {
 
+using v4r_test::BadScene;
 using v4r_test::CliRun;
 
 /// The stereo rig of the issue: the right camera 12 cm to the right of the left one, toed in 5 degrees.
@@ -254,14 +255,6 @@ TEST_F(SceneTrack, AnObjectWithoutInitPoseIsFoundAndThenTrackedOverBothCameras) 
   EXPECT_GE(first, 0);
   EXPECT_LE(first, 10) << "the issue asks for tracking by frame 10";
 }
-
-/// A broken scene file as `v4r track --scene` reports it: non-zero exit, file:line and the field.
-struct BadScene {
-  const char* what;
-  std::string text;
-  int line;
-  const char* field;
-};
 
 TEST_F(SceneTrack, SceneFileErrorsNameFileLineAndFieldAndFail) {
   fs::create_directories(dir_ / "frames3");

@@ -20,6 +20,7 @@ using namespace v4r;
 
 namespace {
 
+using v4r_test::BadScene;
 using v4r_test::CliRun;
 
 class ServeScene : public ::testing::Test {
@@ -47,13 +48,6 @@ class ServeScene : public ::testing::Test {
   static void write(const std::string& name, const std::string& text) { std::ofstream(dir_ / name) << text; }
 
   static inline fs::path dir_;
-};
-
-struct BadScene {
-  const char* what;
-  std::string text;
-  int line;
-  const char* field;
 };
 
 TEST_F(ServeScene, SceneFileErrorsNameFileLineAndFieldAndFail) {

@@ -104,8 +104,6 @@ void expect_tracking_from_frame_1(const std::vector<std::vector<std::string>>& r
   for (std::size_t i = 2; i < rows.size(); ++i) EXPECT_EQ(rows[i][status_col], "tracking") << "frame " << i - 1;
 }
 
-}  // namespace
-
 TEST_F(TagCli, TagErrorsNameTheField) {
   const std::string base = "track --model box --camera c.yaml --input frames --output o.csv --tag ";
   const struct {
@@ -170,3 +168,5 @@ TEST_F(TagCli, SceneObjectWithATagAndNoInitPoseIsTrackingFromFrame1) {
   // The scene CSV has the columns of poses.csv, pose T_ref_obj (camera 0 is the reference here).
   expect_tracking_from_frame_1(read_csv((dir_ / "scene_out" / "box.csv").string()), *gt, r.out);
 }
+
+}  // namespace

@@ -14,6 +14,7 @@
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
 
+#include "../libs/detection/tests/degrees.hpp"
 #include "../libs/detection/tests/detection_scenes.hpp"
 #include "../libs/detection/tests/tag_scenes.hpp"
 #include "v4r/detection/tag_start.hpp"
@@ -28,7 +29,6 @@ namespace sc = v4r::detection::scenes;
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-constexpr double kDeg = kPi / 180.0;
 
 double rotation_deg(const geometry::SE3& a, const geometry::SE3& b) {
   return Eigen::AngleAxisd(a.rotation().transpose() * b.rotation()).angle() / kDeg;

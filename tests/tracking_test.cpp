@@ -62,8 +62,6 @@ SequenceResult run_sequence(const SequenceCase& c, int frames = 120) {
 
 class RegularSequence : public ::testing::TestWithParam<SequenceCase> {};
 
-}  // namespace
-
 TEST_P(RegularSequence, TracksEveryFrameWithinSubMillimetre) {
   const SequenceCase& c = GetParam();
   const SequenceResult r = run_sequence(c);
@@ -109,3 +107,5 @@ TEST(Tracking, ConvergesFromAnOffsetInitialPose) {
   EXPECT_LT(er, 0.2);
   EXPECT_EQ(r.report.status, scene::TrackStatus::kTracking);
 }
+
+}  // namespace

@@ -9,3 +9,7 @@ namespace alloc_count {
 extern std::atomic<bool> counting;
 extern std::atomic<long> allocations;
 }  // namespace alloc_count
+
+// The short names the tests use.
+inline std::atomic<bool>& g_counting = alloc_count::counting;
+inline std::atomic<long>& g_allocations = alloc_count::allocations;

@@ -10,6 +10,7 @@
 #include <gtest/gtest.h>
 
 #include "allocation_counter.hpp"
+#include "degrees.hpp"
 #include "detection_scenes.hpp"
 #include "v4r/detection/colour_regions.hpp"
 #include "v4r/detection/detector.hpp"
@@ -18,17 +19,10 @@
 #include "v4r/model/cao_reader.hpp"
 #include "v4r/model/model_colour.hpp"
 
-namespace {
-std::atomic<bool>& g_counting = alloc_count::counting;  // the binary's counting allocator (detector_test.cpp)
-std::atomic<long>& g_allocations = alloc_count::allocations;
-}  // namespace
-
 using namespace v4r;
 using namespace v4r::detection;
 
 namespace {
-
-constexpr double kDeg = 3.14159265358979323846 / 180.0;
 
 struct Sponge {
   std::shared_ptr<const model::Model> model;

@@ -17,6 +17,7 @@
 #include <gtest/gtest.h>
 
 #include "allocation_counter.hpp"
+#include "degrees.hpp"
 #include "detection_scenes.hpp"
 #include "v4r/detection/detector.hpp"
 #include "v4r/detection/edge_alignment.hpp"
@@ -31,10 +32,6 @@ namespace alloc_count {
 std::atomic<bool> counting{false};
 std::atomic<long> allocations{0};
 }  // namespace alloc_count
-namespace {
-std::atomic<bool>& g_counting = alloc_count::counting;
-std::atomic<long>& g_allocations = alloc_count::allocations;
-}  // namespace
 void* operator new(std::size_t n) {
   if (g_counting.load(std::memory_order_relaxed)) g_allocations.fetch_add(1, std::memory_order_relaxed);
   if (void* p = std::malloc(n == 0 ? 1 : n)) return p;
@@ -47,8 +44,6 @@ using namespace v4r;
 using namespace v4r::detection;
 
 namespace {
-
-constexpr double kDeg = 3.14159265358979323846 / 180.0;
 
 struct Fixture {
   std::shared_ptr<const model::Model> model;

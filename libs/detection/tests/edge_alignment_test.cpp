@@ -11,6 +11,7 @@
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
 
+#include "degrees.hpp"
 #include "detection_scenes.hpp"
 #include "v4r/detection/edge_alignment.hpp"
 #include "v4r/detection/edge_projection.hpp"
@@ -23,8 +24,6 @@ using namespace v4r;
 using namespace v4r::detection;
 
 namespace {
-
-constexpr double kDeg = 3.14159265358979323846 / 180.0;
 
 /// The edge test of `T` on `img` with the continued-edge rule at `reach` (0: off).
 Verification verify_at(const model::Model& m, const geometry::PinholeCamera& cam, DetectorParams p, double reach,

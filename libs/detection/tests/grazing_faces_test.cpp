@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include "degrees.hpp"
 #include "v4r/detection/grazing_faces.hpp"
 #include "v4r/model/cao_reader.hpp"
 #include "v4r/synth/renderer.hpp"
@@ -13,8 +14,6 @@ using namespace v4r;
 using namespace v4r::detection;
 
 namespace {
-
-constexpr double kDeg = 3.14159265358979323846 / 180.0;
 
 model::Model box() {
   auto m = model::parse_cao(synth::box_cao(), "box");

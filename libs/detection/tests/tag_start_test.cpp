@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 
+#include "degrees.hpp"
 #include "tag_scenes.hpp"
 #include "v4r/detection/tag_start.hpp"
 #include "v4r/geometry/look_at.hpp"
@@ -18,7 +19,6 @@ using namespace v4r::detection;
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-constexpr double kDeg = kPi / 180.0;
 
 double rotation_deg(const geometry::SE3& a, const geometry::SE3& b) {
   return Eigen::AngleAxisd(a.rotation().transpose() * b.rotation()).angle() / kDeg;

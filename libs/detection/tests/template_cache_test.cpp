@@ -30,7 +30,7 @@ DetectorParams small_params() {
   return p;
 }
 
-model::Model box() { return std::move(*model::parse_cao(synth::box_cao(), "box")); }
+model::Model box_model() { return std::move(*model::parse_cao(synth::box_cao(), "box")); }
 
 fs::path temp_dir(const std::string& name) {
   const fs::path d = fs::temp_directory_path() / ("v4r_detection_" + name + std::to_string(::getpid()));
@@ -51,7 +51,7 @@ void write_all(const fs::path& p, const std::string& s) {
 }  // namespace
 
 TEST(Templates, GridCoarseLevelAndChildrenCoverEveryView) {
-  const auto m = box();
+  const auto m = box_model();
   auto ts = build_templates(m, synth::default_camera(), small_params());
   ASSERT_TRUE(ts) << ts.error().to_string();
   EXPECT_EQ(ts->views.size(), static_cast<std::size_t>(ts->n_elevation * ts->n_azimuth * ts->n_inplane * ts->n_distance));
@@ -67,7 +67,7 @@ TEST(Templates, GridCoarseLevelAndChildrenCoverEveryView) {
 }
 
 TEST(Templates, BadInputIsAnErrorNamingTheField) {
-  const auto m = box();
+  const auto m = box_model();
   DetectorParams p = small_params();
   p.views.inplane_min_deg = 20;
   auto ts = build_templates(m, synth::default_camera(), p);
@@ -78,7 +78,7 @@ TEST(Templates, BadInputIsAnErrorNamingTheField) {
 }
 
 TEST(TemplateCache, KeyFollowsModelCameraAndViewRange) {
-  const auto m = box();
+  const auto m = box_model();
   const auto cam = synth::default_camera();
   const DetectorParams p = small_params();
   const std::uint64_t k = template_key(m, cam, p);
@@ -97,7 +97,7 @@ TEST(TemplateCache, KeyFollowsModelCameraAndViewRange) {
 }
 
 TEST(TemplateCache, RoundTripAndRebuildOfStaleOrCorruptFiles) {
-  const auto m = box();
+  const auto m = box_model();
   const auto cam = synth::default_camera();
   const DetectorParams p = small_params();
   const fs::path dir = temp_dir("cache");
@@ -159,7 +159,7 @@ TEST(TemplateCache, RoundTripAndRebuildOfStaleOrCorruptFiles) {
 }
 
 TEST(TemplateCache, UnwritableFolderStillGivesTemplates) {
-  const auto m = box();
+  const auto m = box_model();
   const fs::path dir = temp_dir("ro");
   const fs::path file = dir / "not_a_folder";
   write_all(file, "x");

@@ -5,14 +5,13 @@
 
 #include <vector>
 
+#include "degrees.hpp"
 #include "v4r/geometry/look_at.hpp"
 
 using namespace v4r;
 using namespace v4r::detection;
 
 namespace {
-
-constexpr double kDeg = 3.14159265358979323846 / 180.0;
 
 /// A camera at `el` / `az` degrees, `d` metres from `c`, turned `ip` degrees about its axis, then
 /// turned about its centre so that `c` is seen `off` degrees right of and below the axis.

@@ -102,8 +102,6 @@ double track_sequence(ObjectTracker& t, const std::vector<std::vector<double>>& 
   return worst;
 }
 
-}  // namespace
-
 TEST(Embed, ParsePose) {
   Pose p;
   std::string error;
@@ -166,3 +164,5 @@ TEST_F(EmbedSequence, TracksTheRenderedSequenceInEveryPixelFormat) {
     EXPECT_LT(track_sequence(*t, gt, dir_ / "frames", f), 0.005) << "format " << static_cast<int>(f);
   }
 }
+
+}  // namespace

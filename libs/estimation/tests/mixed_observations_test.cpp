@@ -12,6 +12,7 @@
 
 #include <gtest/gtest.h>
 
+#include "solver_test_helpers.hpp"
 #include "v4r/estimation/pose_solver.hpp"
 
 namespace v4r_test {
@@ -19,14 +20,13 @@ long allocation_count();  // pose_solver_test.cpp
 }  // namespace v4r_test
 
 using namespace v4r::estimation;
+using namespace v4r::estimation::test;
 using v4r::geometry::Matrix6d;
 using v4r::geometry::SE3;
 using v4r::geometry::Vector6d;
 
 namespace {
 
-constexpr double kF = 600.0, kCx = 319.5, kCy = 239.5;
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kHalf = 0.15;  ///< half size of the object cube, metres
 
 /// \brief A model circle: centre, unit axis, radius (object frame, metres) and an in-plane basis.
@@ -75,17 +75,6 @@ struct Flags {
           std::vector<std::uint8_t>(d.normals.size())} {}
   InlierFlags spans() { return {f[0], f[1], f[2], f[3], f[4]}; }
 };
-
-Eigen::Vector2d project_px(const SE3& T, const Eigen::Vector3d& X) {
-  const Eigen::Vector3d p = T * X;
-  return {kF * p.x() / p.z() + kCx, kF * p.y() / p.z() + kCy};
-}
-Eigen::Vector2d px_to_normalised(const Eigen::Vector2d& u) { return {(u.x() - kCx) / kF, (u.y() - kCy) / kF}; }
-
-Eigen::Vector3d random_unit(std::mt19937& rng) {
-  std::normal_distribution<double> n(0.0, 1.0);
-  return Eigen::Vector3d(n(rng), n(rng), n(rng)).normalized();
-}
 
 /// A pose 0.55 - 0.75 m in front of the camera under which the used circles are seen at least
 /// ~20 degrees from edge-on and in front of the camera.
@@ -185,23 +174,6 @@ Data observe(std::mt19937& rng, const Config& cfg, const SE3& T) {
     d.normals.push_back({n_obj, n_cam, cfg.sigma_rad});
   }
   return d;
-}
-
-/// Truth moved by `t_m` metres and `r_deg` degrees in random directions.
-SE3 perturb(std::mt19937& rng, const SE3& T, double t_m, double r_deg) {
-  Vector6d d;
-  d.head<3>() = random_unit(rng) * t_m;
-  d.tail<3>() = random_unit(rng) * (r_deg * kPi / 180.0);
-  return SE3::exp(d) * T;
-}
-
-double t_error(const SE3& a, const SE3& b) { return (a.translation() - b.translation()).norm(); }
-double r_error_deg(const SE3& a, const SE3& b) { return v4r::geometry::rotation_angle_between(a, b) * 180.0 / kPi; }
-
-PoseSolverParams params_600() {
-  PoseSolverParams p;
-  p.focal_px = kF;
-  return p;
 }
 
 /// Position / orientation error within `k` predicted standard deviations (+ a small floor).

@@ -7,16 +7,16 @@
 
 #include <gtest/gtest.h>
 
+#include "solver_test_helpers.hpp"
 #include "v4r/estimation/pose_solver.hpp"
 
 using namespace v4r::estimation;
+using namespace v4r::estimation::test;
 using v4r::geometry::Matrix6d;
 using v4r::geometry::SE3;
 using v4r::geometry::Vector6d;
 
 namespace {
-
-constexpr double kF = 600.0, kCx = 319.5, kCy = 239.5;
 
 /// The 12 edges of a 0.2 m box centred at the object origin.
 std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> box_edges() {

@@ -7,16 +7,16 @@
 
 #include <gtest/gtest.h>
 
+#include "solver_test_helpers.hpp"
 #include "v4r/estimation/pose_solver.hpp"
 
 using namespace v4r::estimation;
+using namespace v4r::estimation::test;
 using v4r::geometry::Matrix6d;
 using v4r::geometry::SE3;
 using v4r::geometry::Vector6d;
 
 namespace {
-
-constexpr double kF = 600.0;
 
 /// The image line of a model edge at pose T, moved across by `noise_px` (normalised coordinates).
 LineObservation observe(const SE3& T, const Eigen::Vector3d& X1, const Eigen::Vector3d& X2, double noise_px) {

@@ -12,6 +12,7 @@
 #include <Eigen/Eigenvalues>
 #include <gtest/gtest.h>
 
+#include "solver_test_helpers.hpp"
 #include "v4r/estimation/pose_solver.hpp"
 
 // The replaced operator new uses malloc and operator delete uses free, consistently; GCC cannot
@@ -50,15 +51,14 @@ long allocation_count() { return g_allocations.load(); }
 }  // namespace v4r_test
 
 using namespace v4r::estimation;
+using namespace v4r::estimation::test;
 using v4r::geometry::Matrix6d;
 using v4r::geometry::SE3;
 using v4r::geometry::Vector6d;
 
 namespace {
 
-constexpr double kF = 600.0, kCx = 319.5, kCy = 239.5;
 constexpr int kW = 640, kH = 480;
-constexpr double kPi = 3.14159265358979323846;
 
 /// \brief A synthetic object (points and edges within a 0.3 m cube) at a known pose.
 struct Model {
@@ -73,17 +73,6 @@ struct Observations {
   std::vector<LineObservation> lines;
   std::vector<std::uint8_t> point_outlier, line_outlier;
 };
-
-Eigen::Vector2d project_px(const SE3& T, const Eigen::Vector3d& X) {
-  const Eigen::Vector3d p = T * X;
-  return {kF * p.x() / p.z() + kCx, kF * p.y() / p.z() + kCy};
-}
-Eigen::Vector2d px_to_normalised(const Eigen::Vector2d& u) { return {(u.x() - kCx) / kF, (u.y() - kCy) / kF}; }
-
-Eigen::Vector3d random_unit(std::mt19937& rng) {
-  std::normal_distribution<double> n(0.0, 1.0);
-  return Eigen::Vector3d(n(rng), n(rng), n(rng)).normalized();
-}
 
 /// Model point inside the cube whose camera-frame depth is 0.4 - 0.8 m and which projects into the image.
 Eigen::Vector3d visible_point(std::mt19937& rng, const SE3& T) {
@@ -150,23 +139,6 @@ Observations observe(const Model& m, std::mt19937& rng, double sigma_px, double 
     o.line_outlier.push_back(is_out[m.points.size() + i]);
   }
   return o;
-}
-
-/// Truth moved by `t_m` metres and `r_deg` degrees in random directions.
-SE3 perturb(std::mt19937& rng, const SE3& T, double t_m, double r_deg) {
-  Vector6d d;
-  d.head<3>() = random_unit(rng) * t_m;
-  d.tail<3>() = random_unit(rng) * (r_deg * kPi / 180.0);
-  return SE3::exp(d) * T;
-}
-
-double t_error(const SE3& a, const SE3& b) { return (a.translation() - b.translation()).norm(); }
-double r_error_deg(const SE3& a, const SE3& b) { return v4r::geometry::rotation_angle_between(a, b) * 180.0 / kPi; }
-
-PoseSolverParams params_600() {
-  PoseSolverParams p;
-  p.focal_px = kF;
-  return p;
 }
 
 }  // namespace

@@ -13,19 +13,19 @@ using namespace v4r::features::test_images;
 
 namespace {
 
-constexpr int kW = 200, kH = 160;
+constexpr int kEvidenceW = 200, kEvidenceH = 160;
 
 /// A straight step edge through (100, 80) at angle `a`, contrast 40 grey levels, noise sigma.
 std::vector<std::uint8_t> edge_image(double a, double noise, std::uint32_t seed = 3) {
   const TrueLine line{{100.0, 80.0}, dir(a)};
-  return step_edge(kW, kH, line, 80.0f, 120.0f).quantize(noise, seed);
+  return step_edge(kEvidenceW, kEvidenceH, line, 80.0f, 120.0f).quantize(noise, seed);
 }
 
 double share_along(const std::vector<std::uint8_t>& img, const Eigen::Vector2d& a, const Eigen::Vector2d& b,
                    float thr = 0.0f, EdgeEvidenceParams p = {}) {
   EdgeEvidence ev(p);
   ev.reset();
-  ev.add_segment(view_of(img, kW, kH), a, b, thr);
+  ev.add_segment(view_of(img, kEvidenceW, kEvidenceH), a, b, thr);
   return ev.share();
 }
 
@@ -54,7 +54,7 @@ TEST(EdgeEvidence, AnEdgeFarFromThePredictionOrAcrossItIsNotConfirmed) {
 TEST(EdgeEvidence, ABlurredEdgeIsFoundAtItsCentreNotOnItsFlank) {
   // An edge blurred over about 12 px (erf profile): its gradient exceeds the threshold over
   // several pixels, its maximum lies at the centre line only.
-  Canvas c(kW, kH, 80.0f);
+  Canvas c(kEvidenceW, kEvidenceH, 80.0f);
   for (int x = -12; x <= 12; ++x)
     c.half_plane({100.0 + x - 0.5, 0.0}, {1.0, 0.0}, static_cast<float>(80.0 + 20.0 * (1.0 + std::erf(x / 4.0))));
   const auto img = c.quantize(1.0, 5);
@@ -63,7 +63,7 @@ TEST(EdgeEvidence, ABlurredEdgeIsFoundAtItsCentreNotOnItsFlank) {
 }
 
 TEST(EdgeEvidence, NoiseAloneConfirmsLittleAndTheThresholdFollowsTheCaller) {
-  const auto flat = Canvas(kW, kH, 100.0f).quantize(3.0, 9);
+  const auto flat = Canvas(kEvidenceW, kEvidenceH, 100.0f).quantize(3.0, 9);
   EXPECT_LE(share_along(flat, {100.0, 20.0}, {100.0, 140.0}), 0.1);
   const auto img = edge_image(0.0, 1.0);  // horizontal; contrast 40 over about 1 px: about 20 grey/px
   EXPECT_GE(share_along(img, {20.0, 80.0}, {180.0, 80.0}, 10.0f), 0.95);
@@ -74,12 +74,12 @@ TEST(EdgeEvidence, SamplesOutsideTheImageAreNotCounted) {
   const auto img = edge_image(0.0, 1.0);
   EdgeEvidence ev;
   ev.reset();
-  ev.add_segment(view_of(img, kW, kH), {100.0, -100.0}, {100.0, -20.0}, 0.0f);
+  ev.add_segment(view_of(img, kEvidenceW, kEvidenceH), {100.0, -100.0}, {100.0, -20.0}, 0.0f);
   EXPECT_EQ(ev.samples(), 0);
   EXPECT_EQ(ev.share(), 0.0);
-  EXPECT_FALSE(ev.add_sample(view_of(img, kW, kH), {std::nan(""), 3.0}, {1.0, 0.0}, 0.0f));
+  EXPECT_FALSE(ev.add_sample(view_of(img, kEvidenceW, kEvidenceH), {std::nan(""), 3.0}, {1.0, 0.0}, 0.0f));
   EXPECT_EQ(ev.samples(), 0);
-  ev.add_segment(view_of(img, kW, kH), {20.0, 80.0}, {140.0, 80.0}, 0.0f);
+  ev.add_segment(view_of(img, kEvidenceW, kEvidenceH), {20.0, 80.0}, {140.0, 80.0}, 0.0f);
   EXPECT_EQ(ev.samples(), ev.samples_for_length(120.0));
   EXPECT_EQ(ev.matched(), ev.samples());
 }

@@ -16,7 +16,7 @@ namespace {
 
 using namespace test_images;  // NOLINT: Canvas, TrueLine, view_of, ... of synthetic_images.hpp
 
-constexpr int kW = 240, kH = 240;
+constexpr int kThresholdW = 240, kThresholdH = 240;
 
 TEST(EdgeThreshold, FaintEdgeInACleanImageIsFound) {
   // 8 grey levels of contrast (gradient peak about 4 grey/px) with sigma 1 noise: below the old
@@ -28,11 +28,11 @@ TEST(EdgeThreshold, FaintEdgeInACleanImageIsFound) {
   int found = 0;
   constexpr int kCases = 40;
   for (int k = 0; k < kCases; ++k) {
-    const TrueLine truth{{kW / 2.0, kH / 2.0}, dir(angle(rng))};
-    const auto buf = step_edge(kW, kH, truth, 100.f, 108.f).quantize(1.0, 100 + k);
+    const TrueLine truth{{kThresholdW / 2.0, kThresholdH / 2.0}, dir(angle(rng))};
+    const auto buf = step_edge(kThresholdW, kThresholdH, truth, 100.f, 108.f).quantize(1.0, 100 + k);
     LineTrackState state;
-    const LineMeasurement m =
-        tracker.track(view_of(buf, kW, kH), segment(truth.p + offset(rng) * truth.normal(), truth.t, 120.0), state);
+    const LineMeasurement m = tracker.track(view_of(buf, kThresholdW, kThresholdH),
+                                            segment(truth.p + offset(rng) * truth.normal(), truth.t, 120.0), state);
     if (!m.found) continue;
     ++found;
     err.add(truth.error(m.line));
@@ -52,13 +52,13 @@ TEST(EdgeThreshold, NoiseAloneMakesNoEdgeButAStrongEdgeInItIsFound) {
   ErrorStats err;
   constexpr int kCases = 40;
   for (int k = 0; k < kCases; ++k) {
-    const TrueLine truth{{kW / 2.0, kH / 2.0}, dir(angle(rng))};
+    const TrueLine truth{{kThresholdW / 2.0, kThresholdH / 2.0}, dir(angle(rng))};
     const Segment2 pred = segment(truth.p + 3.0 * truth.normal(), truth.t, 120.0);
     LineTrackState s1, s2;
-    const auto flat = Canvas(kW, kH, 120.f).quantize(12.0, 200 + k);
-    false_edges += tracker.track(view_of(flat, kW, kH), pred, s1).found ? 1 : 0;
-    const auto edge = step_edge(kW, kH, truth, 90.f, 150.f).quantize(12.0, 300 + k);
-    const LineMeasurement m = tracker.track(view_of(edge, kW, kH), pred, s2);
+    const auto flat = Canvas(kThresholdW, kThresholdH, 120.f).quantize(12.0, 200 + k);
+    false_edges += tracker.track(view_of(flat, kThresholdW, kThresholdH), pred, s1).found ? 1 : 0;
+    const auto edge = step_edge(kThresholdW, kThresholdH, truth, 90.f, 150.f).quantize(12.0, 300 + k);
+    const LineMeasurement m = tracker.track(view_of(edge, kThresholdW, kThresholdH), pred, s2);
     if (m.found) {
       ++found;
       err.add(truth.error(m.line));
@@ -97,12 +97,12 @@ TEST(EdgeThreshold, EdgeBlurredOverMostOfTheWindowIsFoundAtItsCentre) {
   int found = 0, old_good = 0;
   constexpr int kCases = 40;
   for (int k = 0; k < kCases; ++k) {
-    const TrueLine truth{{kW / 2.0 + 0.25, kH / 2.0 - 0.4}, dir(angle(rng))};
-    const auto buf = ramp_edge(kW, kH, truth, 80.f, 170.f, 15).quantize(2.0, 500 + k);
+    const TrueLine truth{{kThresholdW / 2.0 + 0.25, kThresholdH / 2.0 - 0.4}, dir(angle(rng))};
+    const auto buf = ramp_edge(kThresholdW, kThresholdH, truth, 80.f, 170.f, 15).quantize(2.0, 500 + k);
     const Segment2 pred = segment(truth.p + offset(rng) * truth.normal(), truth.t, 120.0);
     LineTrackState state, old_state;
-    const LineMeasurement m = tracker.track(view_of(buf, kW, kH), pred, state);
-    const LineMeasurement mo = old_tracker.track(view_of(buf, kW, kH), pred, old_state);
+    const LineMeasurement m = tracker.track(view_of(buf, kThresholdW, kThresholdH), pred, state);
+    const LineMeasurement mo = old_tracker.track(view_of(buf, kThresholdW, kThresholdH), pred, old_state);
     old_good += mo.found && truth.error(mo.line) <= 1.0 ? 1 : 0;
     if (!m.found) continue;
     ++found;
@@ -130,8 +130,8 @@ TEST(EdgeThreshold, IsoluminantColourEdgeIsFoundOnTheColourGradient) {
   ErrorStats err;
   constexpr int kCases = 40;
   for (int k = 0; k < kCases; ++k) {
-    const TrueLine truth{{kW / 2.0 + 0.3, kH / 2.0 - 0.2}, dir(angle(rng))};
-    Canvas c(kW, kH, kGreen);
+    const TrueLine truth{{kThresholdW / 2.0 + 0.3, kThresholdH / 2.0 - 0.2}, dir(angle(rng))};
+    Canvas c(kThresholdW, kThresholdH, kGreen);
     c.half_plane(truth.p, truth.normal(), kPurple);
     const ColourFrame frame(c, 3.0, 400 + k);
     const Segment2 pred = segment(truth.p + offset(rng) * truth.normal(), truth.t, 120.0);
@@ -164,8 +164,8 @@ TEST(EdgeThreshold, AnIsoluminantThinPlatesPairIsMeasuredAtItsMidLineOnTheColour
   ErrorStats err;
   constexpr int kCases = 40;
   for (int k = 0; k < kCases; ++k) {
-    const TrueLine mid{{kW / 2.0 + 0.5 * uni(rng), kH / 2.0 + 0.5 * uni(rng)}, dir(angle(rng))};
-    Canvas c(kW, kH, kPurple);
+    const TrueLine mid{{kThresholdW / 2.0 + 0.5 * uni(rng), kThresholdH / 2.0 + 0.5 * uni(rng)}, dir(angle(rng))};
+    Canvas c(kThresholdW, kThresholdH, kPurple);
     c.half_plane(mid.p - 2.0 * mid.normal(), mid.normal(), kGreen);
     c.half_plane(mid.p + 2.0 * mid.normal(), mid.normal(), kPurple);
     const ColourFrame frame(c, 3.0, 600 + k);

@@ -3,6 +3,8 @@
 // truth, under noise, clutter, occlusion, partial visibility and bad predictions.
 #include "v4r/features/ellipse_tracker.hpp"
 
+#include "synthetic_images.hpp"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -52,6 +54,8 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kDeg = kPi / 180.0;
+
+using test_images::view_of;
 
 /// \brief Ground-truth ellipse: centre, semi-axes a, b (pixels), angle of the a-axis (radians).
 struct TrueEllipse {
@@ -129,9 +133,9 @@ struct TrueEllipse {
 
 /// \brief Float image painted with anti-aliased shapes (8x8 supersampled coverage near the
 /// boundary), quantised to 8 bits with Gaussian noise.
-class Canvas {
+class EllipseCanvas {
  public:
-  Canvas(int width, int height, float fill)
+  EllipseCanvas(int width, int height, float fill)
       : w_(width), h_(height), px_(static_cast<std::size_t>(width) * height, fill) {}
 
   /// Paints `value` where `bound(x)` < 0. `bound` is a signed lower bound of the distance to the
@@ -198,15 +202,6 @@ class Canvas {
   int w_, h_;
   std::vector<float> px_;
 };
-
-image::ImageView view_of(const std::vector<std::uint8_t>& buf, int w, int h) {
-  image::ImageView v;
-  v.data = buf.data();
-  v.width = w;
-  v.height = h;
-  v.stride = w;
-  return v;
-}
 
 /// Random ellipse with semi-axes in [20, 150] pixels, b/a >= 0.4, fully inside a w x h image.
 TrueEllipse random_ellipse(std::mt19937& rng, int w, int h) {
@@ -286,7 +281,7 @@ TEST(EllipseTracker, AccuracyOverRandomEllipsesAndPredictions) {
   for (int c = 0; c < kCases; ++c) {
     const TrueEllipse truth = random_ellipse(rng, kW, kH);
     const bool bright_inside = (c % 2) == 0;
-    Canvas canvas(kW, kH, bright_inside ? 70.f : 170.f);
+    EllipseCanvas canvas(kW, kH, bright_inside ? 70.f : 170.f);
     canvas.ellipse(truth, bright_inside ? 170.f : 70.f);
     const auto img = canvas.quantize(5.0, 100 + c);
     const TrueEllipse pred = perturb(truth, rng);
@@ -335,7 +330,7 @@ TEST(EllipseTracker, DefaultParametersWithATypicalTrackingPrediction) {
   // Default search range (8 px) and a prediction 2.5 px off, 2 % scaled, 2 degrees rotated.
   constexpr int kW = 320, kH = 240;
   const TrueEllipse truth{Eigen::Vector2d(161.3, 118.6), 70.0, 45.0, 0.3};
-  Canvas canvas(kW, kH, 60.f);
+  EllipseCanvas canvas(kW, kH, 60.f);
   canvas.ellipse(truth, 180.f);
   const auto img = canvas.quantize(5.0, 3);
   TrueEllipse pred = truth;
@@ -367,7 +362,7 @@ TEST(EllipseTracker, DefaultParametersWithATypicalTrackingPrediction) {
 TEST(EllipseTracker, NoNoiseIsSubPixelExact) {
   constexpr int kW = 300, kH = 300;
   const TrueEllipse truth{Eigen::Vector2d(150.37, 148.81), 90.0, 55.0, -0.9};
-  Canvas canvas(kW, kH, 170.f);
+  EllipseCanvas canvas(kW, kH, 170.f);
   canvas.ellipse(truth, 70.f);
   const auto img = canvas.quantize(0.0, 1);
   TrueEllipse pred = truth;
@@ -393,7 +388,7 @@ TEST(EllipseTracker, HalfArcOnly) {
   Stats centre, axes, inlier;
   for (int c = 0; c < kCases; ++c) {
     const TrueEllipse truth = random_ellipse(rng, kW, kH);
-    Canvas canvas(kW, kH, 70.f);
+    EllipseCanvas canvas(kW, kH, 70.f);
     canvas.ellipse(truth, 170.f);
     const auto img = canvas.quantize(5.0, 300 + c);
     const TrueEllipse pred = perturb(truth, rng);
@@ -426,7 +421,7 @@ TEST(EllipseTracker, ShortArcFollowsTheEdgeAndStaysNearThePrediction) {
   Stats along, centre;
   for (int c = 0; c < kCases; ++c) {
     const TrueEllipse truth = random_ellipse(rng, kW, kH);
-    Canvas canvas(kW, kH, 70.f);
+    EllipseCanvas canvas(kW, kH, 70.f);
     canvas.ellipse(truth, 170.f);
     const auto img = canvas.quantize(5.0, 500 + c);
     const TrueEllipse pred = perturb(truth, rng);
@@ -458,7 +453,7 @@ TEST(EllipseTracker, ClutterOfCrossingLinesAndBlobs) {
   int found = 0;
   for (int c = 0; c < kCases; ++c) {
     const TrueEllipse truth = random_ellipse(rng, kW, kH);
-    Canvas canvas(kW, kH, 70.f);
+    EllipseCanvas canvas(kW, kH, 70.f);
     canvas.ellipse(truth, 170.f);
     // Four long straight lines (3 px wide) crossing the ellipse, random grey levels.
     for (int k = 0; k < 4; ++k) {
@@ -515,7 +510,7 @@ TEST(EllipseTracker, ThirtyPercentOccludedByAFlatPatch) {
     std::sort(proj.begin(), proj.end());
     const double cut = proj[static_cast<std::size_t>(kSamples * 7 / 10) - 1];
     const double edge = 0.5 * (cut + proj[static_cast<std::size_t>(kSamples * 7 / 10)]);
-    Canvas canvas(kW, kH, 70.f);
+    EllipseCanvas canvas(kW, kH, 70.f);
     canvas.ellipse(truth, 170.f);
     canvas.half_plane(edge * d, d, 120.f);
     const auto img = canvas.quantize(5.0, 900 + c);
@@ -541,7 +536,7 @@ TEST(EllipseTracker, NoEllipseInTheImageIsNotFound) {
   std::mt19937 rng(4242);
   std::uniform_real_distribution<double> u01(0.0, 1.0), ulevel(0.0, 255.0);
   for (int c = 0; c < 16; ++c) {
-    Canvas canvas(kW, kH, 110.f);
+    EllipseCanvas canvas(kW, kH, 110.f);
     if (c % 2 == 1) {
       // Straight lines and blobs, but no ellipse.
       for (int k = 0; k < 6; ++k) {
@@ -566,7 +561,7 @@ TEST(EllipseTracker, NoEllipseInTheImageIsNotFound) {
 TEST(EllipseTracker, PartlyOutsideTheImage) {
   constexpr int kW = 320, kH = 240;
   const TrueEllipse truth{Eigen::Vector2d(25.4, 180.7), 80.0, 50.0, 0.5};  // ~40 % of it outside
-  Canvas canvas(kW, kH, 70.f);
+  EllipseCanvas canvas(kW, kH, 70.f);
   canvas.ellipse(truth, 170.f);
   const auto img = canvas.quantize(5.0, 17);
   TrueEllipse pred = truth;
@@ -610,7 +605,7 @@ TEST(EllipseTracker, PartlyOutsideTheImage) {
 TEST(EllipseTracker, DegenerateInputsAreNotFound) {
   constexpr int kW = 200, kH = 200;
   const TrueEllipse truth{Eigen::Vector2d(100.0, 100.0), 50.0, 35.0, 0.2};
-  Canvas canvas(kW, kH, 70.f);
+  EllipseCanvas canvas(kW, kH, 70.f);
   canvas.ellipse(truth, 170.f);
   const auto img = canvas.quantize(5.0, 2);
   const image::ImageView view = view_of(img, kW, kH);
@@ -669,7 +664,7 @@ TEST(EllipseTracker, DegenerateInputsAreNotFound) {
 TEST(EllipseTracker, ManySamplesAreSubsampledEvenly) {
   constexpr int kW = 300, kH = 300;
   const TrueEllipse truth{Eigen::Vector2d(148.2, 151.9), 110.0, 70.0, 1.1};
-  Canvas canvas(kW, kH, 170.f);
+  EllipseCanvas canvas(kW, kH, 170.f);
   canvas.ellipse(truth, 70.f);
   const auto img = canvas.quantize(5.0, 9);
   TrueEllipse pred = truth;
@@ -700,7 +695,7 @@ TEST(EllipseTracker, LearnedPolarityRejectsAStrongerOppositeEdge) {
   TrueEllipse outer = inner;
   outer.a += 8.0;
   outer.b += 8.0;  // not exactly an ellipse at constant distance, but near one
-  Canvas canvas(kW, kH, 70.f);
+  EllipseCanvas canvas(kW, kH, 70.f);
   canvas.ellipse(outer, 250.f);
   canvas.ellipse(inner, 170.f);
   const auto img = canvas.quantize(5.0, 21);
@@ -730,7 +725,7 @@ TEST(EllipseTracker, LearnedPolarityRejectsAStrongerOppositeEdge) {
 TEST(EllipseTracker, DeterministicAndAllocationFree) {
   constexpr int kW = 320, kH = 240;
   const TrueEllipse truth{Eigen::Vector2d(160.5, 120.5), 80.0, 60.0, -0.3};
-  Canvas canvas(kW, kH, 70.f);
+  EllipseCanvas canvas(kW, kH, 70.f);
   canvas.ellipse(truth, 170.f);
   canvas.capsule(Eigen::Vector2d(0.0, 40.0), Eigen::Vector2d(320.0, 200.0), 2.0, 220.f);
   const auto img = canvas.quantize(5.0, 8);

@@ -19,7 +19,7 @@ namespace {
 
 using namespace test_images;  // NOLINT: Canvas, TrueLine, view_of, ... of synthetic_images.hpp
 
-constexpr int kW = 240, kH = 240;
+constexpr int kEpicW = 240, kEpicH = 240;
 constexpr double kHitTolerance = 0.3;  // pixels: a measurement on the true line
 constexpr double kLength = 120.0;      // pixels: predicted segment length
 
@@ -27,7 +27,7 @@ constexpr double kLength = 120.0;      // pixels: predicted segment length
 /// normal), then `regions[k]` from s = `starts[k]` on (starts increasing).
 template <typename V>
 Canvas profile(const TrueLine& line, const std::vector<double>& starts, const std::vector<V>& regions) {
-  Canvas c(kW, kH, regions[0]);
+  Canvas c(kEpicW, kEpicH, regions[0]);
   for (std::size_t k = 1; k < regions.size(); ++k)
     c.half_plane(line.p + starts[k] * line.normal(), line.normal(), regions[k]);
   return c;
@@ -69,9 +69,10 @@ TEST(LineTrackerCues, LearnsTheObjectSideOnly) {
   // Object face 140 on the -normal side, background 60: one frame learns side 0, not side 1.
   LineTracker tracker;
   const TrueLine truth{{120.3, 119.6}, dir(0.7)};
-  const auto buf = step_edge(kW, kH, truth, 140.f, 60.f).quantize(6.0, 1);
+  const auto buf = step_edge(kEpicW, kEpicH, truth, 140.f, 60.f).quantize(6.0, 1);
   LineTrackState state = object_on_minus_side();
-  const LineMeasurement m = tracker.track(view_of(buf, kW, kH), segment(truth.p + 1.0 * truth.normal(), truth.t, kLength), state);
+  const LineMeasurement m =
+      tracker.track(view_of(buf, kEpicW, kEpicH), segment(truth.p + 1.0 * truth.normal(), truth.t, kLength), state);
   ASSERT_TRUE(m.found);
   EXPECT_FALSE(m.cue_fallback);
   EXPECT_EQ(m.cue_rejected, 0);
@@ -84,9 +85,10 @@ TEST(LineTrackerCues, LearnsTheObjectSideOnly) {
   EXPECT_FALSE(state.side[1].learned);
 
   // Running update: the face brightens slowly (150); the mean moves by learning_rate of the step.
-  const auto brighter = step_edge(kW, kH, truth, 150.f, 60.f).quantize(6.0, 2);
+  const auto brighter = step_edge(kEpicW, kEpicH, truth, 150.f, 60.f).quantize(6.0, 2);
   const float before = state.side[0].mean[0];
-  const LineMeasurement m2 = tracker.track(view_of(brighter, kW, kH), segment(truth.p, truth.t, kLength), state);
+  const LineMeasurement m2 =
+      tracker.track(view_of(brighter, kEpicW, kEpicH), segment(truth.p, truth.t, kLength), state);
   ASSERT_TRUE(m2.found);
   EXPECT_FALSE(m2.cue_fallback);
   EXPECT_NEAR(state.side[0].mean[0] - before, tracker.params().learning_rate * 10.0, 1.5);
@@ -102,13 +104,13 @@ TEST(LineTrackerCues, WithoutObjectSidesResultsAreUnchanged) {
   LineTracker with_cues, without(off);
   for (int k = 0; k < 40; ++k) {
     const TrueLine truth{{120.2, 119.7}, dir(angle(rng))};
-    Canvas c = step_edge(kW, kH, truth, 150.f, 70.f);
+    Canvas c = step_edge(kEpicW, kEpicH, truth, 150.f, 70.f);
     c.half_plane(truth.p + 7.0 * truth.normal(), truth.normal(), 100.f);  // clutter: a weaker second edge
     const auto buf = c.quantize(6.0, 100 + k);
     const Segment2 pred = segment(truth.p + offset(rng) * truth.normal(), truth.t, kLength);
     LineTrackState s1, s2;
-    const LineMeasurement a = with_cues.track(view_of(buf, kW, kH), pred, s1);
-    const LineMeasurement b = without.track(view_of(buf, kW, kH), pred, s2);
+    const LineMeasurement a = with_cues.track(view_of(buf, kEpicW, kEpicH), pred, s1);
+    const LineMeasurement b = without.track(view_of(buf, kEpicW, kEpicH), pred, s2);
     EXPECT_EQ(a.found, b.found);
     EXPECT_EQ(a.line.a, b.line.a);
     EXPECT_EQ(a.line.b, b.line.b);
@@ -118,9 +120,9 @@ TEST(LineTrackerCues, WithoutObjectSidesResultsAreUnchanged) {
     EXPECT_FALSE(s1.side[1].learned);
     // Learned object side, same image (the object edge is the strongest: cues keep it).
     LineTrackState s3 = object_on_minus_side();
-    (void)with_cues.track(view_of(buf, kW, kH), pred, s3);
+    (void)with_cues.track(view_of(buf, kEpicW, kEpicH), pred, s3);
     ASSERT_TRUE(s3.side[0].learned);
-    const LineMeasurement c3 = with_cues.track(view_of(buf, kW, kH), pred, s3);
+    const LineMeasurement c3 = with_cues.track(view_of(buf, kEpicW, kEpicH), pred, s3);
     ASSERT_TRUE(c3.found);
     EXPECT_FALSE(c3.cue_fallback);
     EXPECT_LT(truth.error(c3.line), kHitTolerance);
@@ -145,7 +147,7 @@ TEST(LineTrackerCues, StrongerBackgroundEdgeIsDiscarded) {
     TrueLine truth{base, dir(th)};
     const auto clean = profile<float>(truth, {0.0, 0.0}, {140.f, 60.f}).quantize(6.0, 50 + seq);
     LineTrackState state = object_on_minus_side();
-    ASSERT_TRUE(tracker.track(view_of(clean, kW, kH), segment(base, truth.t, kLength), state).found);
+    ASSERT_TRUE(tracker.track(view_of(clean, kEpicW, kEpicH), segment(base, truth.t, kLength), state).found);
     ASSERT_TRUE(state.side[0].learned);
     for (int f = 1; f <= 12; ++f) {
       truth.p = base + shift(rng) * truth.normal();
@@ -154,9 +156,9 @@ TEST(LineTrackerCues, StrongerBackgroundEdgeIsDiscarded) {
       const auto buf = profile<float>(truth, {0.0, 0.0, d}, {140.f, 60.f, 230.f}).quantize(6.0, 1000 * seq + f);
       const Segment2 pred = segment(truth.p + offset(rng) * truth.normal(), truth.t, kLength);
       state.polarity = 0;
-      classify(tracker.track(view_of(buf, kW, kH), pred, state), truth, distractor, cued);
+      classify(tracker.track(view_of(buf, kEpicW, kEpicH), pred, state), truth, distractor, cued);
       LineTrackState fresh;
-      classify(plain.track(view_of(buf, kW, kH), pred, fresh), truth, distractor, uncued);
+      classify(plain.track(view_of(buf, kEpicW, kEpicH), pred, fresh), truth, distractor, uncued);
     }
   }
   print("grey, opposite-sign distractor, cues", cued);
@@ -185,7 +187,7 @@ TEST(LineTrackerCues, StrongerSameSignBackgroundEdgeIsDiscarded) {
     TrueLine truth{base, dir(th)};
     const auto clean = profile<float>(truth, {0.0, 0.0}, {140.f, 60.f}).quantize(6.0, 70 + seq);
     LineTrackState state = object_on_minus_side();
-    ASSERT_TRUE(tracker.track(view_of(clean, kW, kH), segment(base, truth.t, kLength), state).found);
+    ASSERT_TRUE(tracker.track(view_of(clean, kEpicW, kEpicH), segment(base, truth.t, kLength), state).found);
     LineTrackState plain_state = state;  // the same learned polarity, no cues
     for (int f = 1; f <= 12; ++f) {
       truth.p = base + shift(rng) * truth.normal();
@@ -194,10 +196,10 @@ TEST(LineTrackerCues, StrongerSameSignBackgroundEdgeIsDiscarded) {
       const auto buf =
           profile<float>(truth, {0.0, 0.0, 2.5, d}, {140.f, 60.f, 230.f, 20.f}).quantize(6.0, 2000 * seq + f);
       const Segment2 pred = segment(truth.p + offset(rng) * truth.normal(), truth.t, kLength);
-      const LineMeasurement m = tracker.track(view_of(buf, kW, kH), pred, state);
+      const LineMeasurement m = tracker.track(view_of(buf, kEpicW, kEpicH), pred, state);
       classify(m, truth, distractor, cued);
       EXPECT_GT(m.cue_rejected, 0);
-      classify(plain.track(view_of(buf, kW, kH), pred, plain_state), truth, distractor, uncued);
+      classify(plain.track(view_of(buf, kEpicW, kEpicH), pred, plain_state), truth, distractor, uncued);
       ASSERT_EQ(plain_state.polarity, -1);
     }
   }
@@ -226,8 +228,8 @@ TEST(LineTrackerCues, InteriorEdgeChecksBothFaces) {
     s_both.side[1].is_object = true;
     LineTrackState s_one = object_on_minus_side();
     const Segment2 p0 = segment(truth.p, truth.t, kLength);
-    ASSERT_TRUE(tracker.track(view_of(clean, kW, kH), p0, s_both).found);
-    ASSERT_TRUE(tracker.track(view_of(clean, kW, kH), p0, s_one).found);
+    ASSERT_TRUE(tracker.track(view_of(clean, kEpicW, kEpicH), p0, s_both).found);
+    ASSERT_TRUE(tracker.track(view_of(clean, kEpicW, kEpicH), p0, s_one).found);
     ASSERT_TRUE(s_both.side[1].learned);
     EXPECT_NEAR(s_both.side[1].mean[0], 90.0, 3.0);
     for (int f = 1; f <= 8; ++f) {
@@ -236,8 +238,8 @@ TEST(LineTrackerCues, InteriorEdgeChecksBothFaces) {
       const auto buf =
           profile<float>(truth, {0.0, 0.0, 5.0, d}, {140.f, 90.f, 140.f, 20.f}).quantize(6.0, 3000 * seq + f);
       const Segment2 pred = segment(truth.p + offset(rng) * truth.normal(), truth.t, kLength);
-      classify(tracker.track(view_of(buf, kW, kH), pred, s_both), truth, distractor, both);
-      classify(tracker.track(view_of(buf, kW, kH), pred, s_one), truth, distractor, one);
+      classify(tracker.track(view_of(buf, kEpicW, kEpicH), pred, s_both), truth, distractor, both);
+      classify(tracker.track(view_of(buf, kEpicW, kEpicH), pred, s_one), truth, distractor, one);
     }
   }
   print("interior edge, both faces", both);
@@ -395,9 +397,10 @@ TEST(LineTrackerCues, GreyShadowFallsBackAndRelearns) {
     const TrueLine truth{{120.1, 119.4}, dir(0.5 + seq * kPi / 6.0)};
     const auto clean = profile<float>(truth, {0.0, 0.0}, {140.f, 60.f}).quantize(6.0, 600 + seq);
     LineTrackState state = object_on_minus_side();
-    ASSERT_TRUE(tracker.track(view_of(clean, kW, kH), segment(truth.p, truth.t, kLength), state).found);
+    ASSERT_TRUE(tracker.track(view_of(clean, kEpicW, kEpicH), segment(truth.p, truth.t, kLength), state).found);
     const auto dark = profile<float>(truth, {0.0, 0.0}, {84.f, 60.f}).quantize(6.0, 700 + seq);
-    const LineMeasurement m = tracker.track(view_of(dark, kW, kH), segment(truth.p + 0.5 * truth.normal(), truth.t, kLength), state);
+    const LineMeasurement m =
+        tracker.track(view_of(dark, kEpicW, kEpicH), segment(truth.p + 0.5 * truth.normal(), truth.t, kLength), state);
     ASSERT_TRUE(m.found);
     EXPECT_TRUE(m.cue_fallback);
     EXPECT_GT(m.cue_rejected, 0);
@@ -408,7 +411,8 @@ TEST(LineTrackerCues, GreyShadowFallsBackAndRelearns) {
       const TrueLine distractor{truth.p + d * truth.normal(), truth.t};
       const auto buf = profile<float>(truth, {0.0, 0.0, d}, {84.f, 60.f, 230.f}).quantize(6.0, 6000 * seq + f);
       state.polarity = 0;  // only the cue separates the edges (see StrongerBackgroundEdgeIsDiscarded)
-      classify(tracker.track(view_of(buf, kW, kH), segment(truth.p + offset(rng) * truth.normal(), truth.t, kLength), state),
+      classify(tracker.track(view_of(buf, kEpicW, kEpicH),
+                             segment(truth.p + offset(rng) * truth.normal(), truth.t, kLength), state),
                truth, distractor, after);
     }
   }
@@ -425,11 +429,11 @@ TEST(LineTrackerCues, OccludedObjectEdgeFallsBackWithoutRelearningFromAPoorFit) 
   const auto clean = profile<float>(truth, {0.0, 0.0}, {140.f, 60.f}).quantize(6.0, 801);
   LineTrackState state = object_on_minus_side();
   const Segment2 pred = segment(truth.p, truth.t, kLength);
-  ASSERT_TRUE(tracker.track(view_of(clean, kW, kH), pred, state).found);
+  ASSERT_TRUE(tracker.track(view_of(clean, kEpicW, kEpicH), pred, state).found);
   const SideAppearance learned = state.side[0];
   // A background edge 200 | 60 (the object edge's sign) along half the window only: inlier ratio
   // about 0.5, below learn_min_inlier_ratio.
-  Canvas c(kW, kH, 60.f);
+  Canvas c(kEpicW, kEpicH, 60.f);
   c.paint(
       [&](double x, double y) {
         const Eigen::Vector2d q(x, y);
@@ -437,7 +441,7 @@ TEST(LineTrackerCues, OccludedObjectEdgeFallsBackWithoutRelearningFromAPoorFit) 
       },
       200.f);
   const auto buf = c.quantize(6.0, 802);
-  const LineMeasurement m = tracker.track(view_of(buf, kW, kH), pred, state);
+  const LineMeasurement m = tracker.track(view_of(buf, kEpicW, kEpicH), pred, state);
   EXPECT_TRUE(m.cue_fallback);
   ASSERT_TRUE(m.found);
   EXPECT_LT(m.inlier_ratio, tracker.params().learn_min_inlier_ratio);
@@ -498,11 +502,12 @@ TEST(LineTrackerCues, EdgelNearWindowBorderSamplesBeyondTheWindow) {
   const auto buf = profile<float>(truth, {0.0, 0.0}, {60.f, 140.f}).quantize(6.0, 950);
   LineTrackState state;
   state.side[1].is_object = true;  // the object on the + side this time
-  ASSERT_TRUE(tracker.track(view_of(buf, kW, kH), segment(truth.p, truth.t, kLength), state).found);
+  ASSERT_TRUE(tracker.track(view_of(buf, kEpicW, kEpicH), segment(truth.p, truth.t, kLength), state).found);
   ASSERT_TRUE(state.side[1].learned);
   EXPECT_FALSE(state.side[0].learned);
   EXPECT_NEAR(state.side[1].mean[0], 140.0, 3.0);
-  const LineMeasurement m = tracker.track(view_of(buf, kW, kH), segment(truth.p - 7.5 * truth.normal(), truth.t, kLength), state);
+  const LineMeasurement m =
+      tracker.track(view_of(buf, kEpicW, kEpicH), segment(truth.p - 7.5 * truth.normal(), truth.t, kLength), state);
   ASSERT_TRUE(m.found);
   EXPECT_FALSE(m.cue_fallback);
   EXPECT_EQ(m.cue_rejected, 0);

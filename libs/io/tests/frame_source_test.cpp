@@ -2,6 +2,8 @@
 
 #include "v4r/io/frame_source.hpp"
 
+#include "temp_dir.hpp"
+
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
@@ -20,26 +22,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-/// \brief A fresh temporary directory, removed with its contents at scope exit.
-class TempDir {
- public:
-  TempDir() {
-    std::string tmpl = (fs::temp_directory_path() / "v4r_io_frames_XXXXXX").string();
-    path_ = ::mkdtemp(tmpl.data()) != nullptr ? fs::path(tmpl) : fs::path();
-  }
-  ~TempDir() {
-    std::error_code ec;
-    if (!path_.empty()) fs::remove_all(path_, ec);
-  }
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
-  [[nodiscard]] std::string file(const std::string& name) const { return (path_ / name).string(); }
-  [[nodiscard]] std::string path() const { return path_.string(); }
-  [[nodiscard]] bool ok() const { return !path_.empty(); }
-
- private:
-  fs::path path_;
-};
+using test::TempDir;
 
 /// A 1-channel 8-bit image filled with `value`.
 cv::Mat grey(int value, int w = 32, int h = 24) { return cv::Mat(h, w, CV_8UC1, cv::Scalar(value)); }

@@ -18,11 +18,13 @@
 #include "v4r/model/cao_reader.hpp"
 #include "v4r/model/mesh_reader.hpp"
 #include "v4r/model/mesh_writer.hpp"
+#include "v4r/model/model_colour.hpp"
 
 namespace fs = std::filesystem;
 using v4r::geometry::SE3;
 using v4r::model::CircleArc;
 using v4r::model::Cylinder;
+using v4r::model::face_area;
 using v4r::model::Index;
 using v4r::model::kNone;
 using v4r::model::load_mesh;
@@ -50,19 +52,12 @@ Model load_data(const std::string& name) {
 }
 
 /// A fresh directory per test process, removed at the end of the test that asks for it.
-struct TempDir {
+struct MeshTempDir {
   fs::path path = fs::temp_directory_path() / ("v4r_mesh_reader_test_" + std::to_string(::getpid()));
-  TempDir() { fs::create_directories(path); }
-  ~TempDir() { fs::remove_all(path); }
+  MeshTempDir() { fs::create_directories(path); }
+  ~MeshTempDir() { fs::remove_all(path); }
   [[nodiscard]] std::string file(const std::string& name) const { return (path / name).string(); }
 };
-
-double face_area(const Model& m, const v4r::model::Face& f) {
-  Vector3d n = Vector3d::Zero();
-  for (std::size_t i = 0; i < f.loop.size(); ++i)
-    n += m.junctions()[f.loop[i]].p.cross(m.junctions()[f.loop[(i + 1) % f.loop.size()]].p);
-  return 0.5 * n.norm();
-}
 
 double total_area(const Model& m) {
   double a = 0.0;
@@ -199,7 +194,7 @@ const CircleArc& nearest_arc(const Model& m, const Vector3d& centre) {
 // ------------------------------------------------------------------------------------------
 
 TEST(MeshReader, BuiltInModelsGiveTheirCaoEdgesAndFacesInEveryFormat) {
-  TempDir tmp;
+  MeshTempDir tmp;
   for (const std::string name : {"box", "ship_mockup"}) {
     const Model ref = load_data(name + ".cao");
     for (const std::string ext : {"obj", "stl", "ply"}) {
@@ -224,7 +219,7 @@ TEST(MeshReader, BuiltInModelsGiveTheirCaoEdgesAndFacesInEveryFormat) {
 }
 
 TEST(MeshReader, MillimetreFileWithTransformIsPlacedInTheObjectFrame) {
-  TempDir tmp;
+  MeshTempDir tmp;
   const Model ref = load_data("ship_mockup.cao");
   // The file frame is rotated and shifted with respect to the object frame, and in millimetres.
   const SE3 T_obj_file = SE3::from_rvec(Vector3d(0.03, -0.2, 0.1), Vector3d(0.3, -0.5, 1.1));
@@ -256,7 +251,7 @@ TEST(MeshReader, MillimetreFileWithTransformIsPlacedInTheObjectFrame) {
 }
 
 TEST(MeshReader, TessellatedCylinderOnPlateGivesTwoCirclesAndNoSideLines) {
-  TempDir tmp;
+  MeshTempDir tmp;
   const Cylinder cyl{{0.05, 0.02, 0.0}, {0.05, 0.02, 0.1}, 0.04, {}};
   const Model ref = plate_with_cylinder(cyl);
   for (const bool caps : {true, false}) {
@@ -303,7 +298,7 @@ TEST(MeshReader, TessellatedCylinderOnPlateGivesTwoCirclesAndNoSideLines) {
 }
 
 TEST(MeshReader, TiltedCylinderCirclesFollowTheAxis) {
-  TempDir tmp;
+  MeshTempDir tmp;
   const Vector3d p1(0.01, -0.03, 0.02);
   const Vector3d axis = Vector3d(0.3, -0.4, 0.866).normalized();
   ModelBuilder b("tilted");
@@ -326,7 +321,7 @@ TEST(MeshReader, TiltedCylinderCirclesFollowTheAxis) {
 TEST(MeshReader, EdgeSplitIntoCollinearPiecesIsOneLine) {
   // Every box edge is split into 3..5 pieces by the face grids; float STL coordinates from
   // different faces meet within the weld tolerance.
-  TempDir tmp;
+  MeshTempDir tmp;
   const Model ref = load_data("box.cao");
   const TriangleMesh grid = subdivided_box(Vector3d(0.1, 0.075, 0.05), Eigen::Vector3i(5, 4, 3));
   for (const std::string ext : {"stl", "obj"}) {
@@ -538,7 +533,7 @@ TEST(MeshReader, HalfDiscGivesOneArcAndItsDiameterPerOutline) {
 }
 
 TEST(MeshReader, AllMeshesAndNodeInstancesArePlacedAndWelded) {
-  TempDir tmp;
+  MeshTempDir tmp;
   const Model ref = load_data("box.cao");
   const TriangleMesh box = v4r::model::triangulate(ref);
   // OBJ with the box split into two objects (two assimp meshes): the weld joins them.
@@ -655,7 +650,7 @@ TEST(MeshReader, WindingIsMadeConsistentAndOutward) {
 }
 
 TEST(MeshReader, MalformedInputsAreErrorsNamingTheFile) {
-  TempDir tmp;
+  MeshTempDir tmp;
   auto expect_error = [](const std::string& path, const std::string& fragment) {
     auto m = load_mesh(path);
     ASSERT_FALSE(m) << path;
@@ -691,7 +686,7 @@ TEST(MeshReader, MalformedInputsAreErrorsNamingTheFile) {
 TEST(MeshReader, LargeMeshLoadsQuickly) {
   // 2 x 2 x (120 x 90 + 120 x 60 + 90 x 60) = 93600 triangles: a finely meshed box, written as an
   // STL triangle soup that the weld must stitch.
-  TempDir tmp;
+  MeshTempDir tmp;
   const Eigen::Vector3i n(120, 90, 60);
   const TriangleMesh grid = subdivided_box(Vector3d(0.1, 0.075, 0.05), n);
   ASSERT_TRUE(v4r::model::write_mesh(grid, tmp.file("fine_box.stl")));

@@ -9,6 +9,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "alloc_counter.hpp"
+#include "mat_views.hpp"
 
 #include "v4r/detection/template_set.hpp"
 #include "v4r/geometry/look_at.hpp"
@@ -67,8 +68,8 @@ Sequence make(std::string (*cao)(), double distance, int frames) {
   return s;
 }
 
-image::ImageView view(const cv::Mat& g) { return {g.ptr<std::uint8_t>(0), g.cols, g.rows, static_cast<int>(g.step[0])}; }
-image::ColourView cview(const cv::Mat& c) { return {c.ptr<std::uint8_t>(0), c.cols, c.rows, static_cast<int>(c.step[0])}; }
+using v4r::test::cview;
+using v4r::test::view;
 
 }  // namespace
 

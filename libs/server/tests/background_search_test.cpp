@@ -17,6 +17,7 @@
 #include <gtest/gtest.h>
 
 #include "../../detection/tests/tag_scenes.hpp"
+#include "fixture.hpp"
 #include "v4r/io/loop_source.hpp"
 #include "v4r/detection/symmetry.hpp"
 #include "v4r/detection/template_cache.hpp"
@@ -155,10 +156,6 @@ struct Seen {
   }
 };
 
-geometry::SE3 to_se3(const protocol::ObjectPoseEvent& e) {
-  return geometry::SE3(Eigen::Quaterniond(e.q[0], e.q[1], e.q[2], e.q[3]), Eigen::Vector3d(e.t[0], e.t[1], e.t[2]));
-}
-
 /// The service on the world's frames (or `frames`); `box_tag`: the box's StartObject has this tag
 /// (the scene file's `tag:`).
 std::unique_ptr<TrackingService> make_service(Latch& latch, Seen& seen, bool background = true,
@@ -274,7 +271,7 @@ TEST(BackgroundSearch, ASetPoseWhileTheWorkerSearchesWinsOverItsLateResult) {
 }
 
 /// Submits a command and waits for its reply.
-std::string ask(TrackingService& service, protocol::Command c) {
+std::string ask_service(TrackingService& service, protocol::Command c) {
   std::mutex m;
   std::condition_variable cv;
   std::string reply;
@@ -297,7 +294,7 @@ TEST(BackgroundSearch, RemovingAnObjectWhileTheWorkerSearchesDropsItsResultAndTh
   service->start();
   ASSERT_TRUE(latch.wait_held(120s));
   // The flange (scene index 0) leaves: the box moves to index 0 while the worker holds its search.
-  const std::string reply = ask(*service, protocol::RemoveObject{"flange"});
+  const std::string reply = ask_service(*service, protocol::RemoveObject{"flange"});
   ASSERT_TRUE(reply.starts_with("OK RemoveObject")) << reply;
   latch.release();
   const pipeline::BackgroundSearch* bg = service->search()->background();

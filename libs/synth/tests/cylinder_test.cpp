@@ -10,6 +10,7 @@
 #include <opencv2/imgproc.hpp>
 #include <vector>
 
+#include "render_test_helpers.hpp"
 #include "v4r/model/cao_reader.hpp"
 #include "v4r/synth/renderer.hpp"
 
@@ -18,8 +19,8 @@ namespace {
 
 using geometry::PinholeCamera;
 using geometry::SE3;
-
-constexpr double kDeg = std::numbers::pi / 180.0;
+using test::kDeg;
+using test::window_median;
 
 RenderOptions clean_grey() {
   RenderOptions o;
@@ -41,14 +42,6 @@ model::Model lone_cylinder(const Eigen::Vector3d& p1, const Eigen::Vector3d& p2,
   auto m = std::move(b).build();
   EXPECT_TRUE(m.has_value());
   return std::move(m).value();
-}
-
-double window_median(const cv::Mat& grey, int x, int y, int r) {
-  std::vector<int> v;
-  for (int dy = -r; dy <= r; ++dy)
-    for (int dx = -r; dx <= r; ++dx) v.push_back(grey.at<std::uint8_t>(y + dy, x + dx));
-  std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
-  return v[v.size() / 2];
 }
 
 /// Sub-pixel position where the grey level crosses `level` between samples i0 and i1 of a

@@ -9,6 +9,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "render_test_helpers.hpp"
 #include "v4r/model/cao_reader.hpp"
 #include "v4r/synth/renderer.hpp"
 
@@ -17,6 +18,7 @@ namespace {
 
 using geometry::PinholeCamera;
 using geometry::SE3;
+using test::window_median;
 
 model::Model parse(const std::string& cao, const std::string& name) {
   auto m = model::parse_cao(cao, name);
@@ -50,15 +52,6 @@ Eigen::Vector3d face_centroid(const model::Model& m, const model::Face& f) {
 bool front_facing(const model::Model& m, const model::Face& f, const SE3& T) {
   const Eigen::Vector3d n = T.rotation() * f.normal;
   return n.dot(T * face_centroid(m, f)) < 0.0;
-}
-
-/// Median of a (2r+1)^2 window of a grey image.
-double window_median(const cv::Mat& grey, int x, int y, int r) {
-  std::vector<int> v;
-  for (int dy = -r; dy <= r; ++dy)
-    for (int dx = -r; dx <= r; ++dx) v.push_back(grey.at<std::uint8_t>(y + dy, x + dx));
-  std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
-  return v[v.size() / 2];
 }
 
 /// A box built feature by feature (independent of the .cao reader), one colour per face.

@@ -5,14 +5,14 @@
 
 #include <gtest/gtest.h>
 
+#include "render_test_helpers.hpp"
 #include "v4r/synth/renderer.hpp"
 
 namespace v4r::synth {
 namespace {
 
 using geometry::SE3;
-
-constexpr double kDeg = std::numbers::pi / 180.0;
+using test::kDeg;
 
 TrajectorySpec spec_at_half_metre() {
   TrajectorySpec s;
