@@ -18,6 +18,7 @@
 
 #include "../libs/detection/tests/degrees.hpp"
 #include "../libs/detection/tests/detection_scenes.hpp"
+#include "../libs/detection/tests/test_templates.hpp"
 #include "test_objects.hpp"
 #include "v4r/detection/symmetry.hpp"
 #include "v4r/detection/template_set.hpp"
@@ -77,9 +78,9 @@ ModelWithTemplates object_with_templates(const std::string& name, const geometry
   auto parsed = model::parse_cao(cao(), name);
   if (!parsed) return {};
   auto model = std::make_shared<const model::Model>(std::move(*parsed));
-  auto ts = detection::build_templates(*model, cam, dp);
+  auto ts = detection::test::test_templates(*model, cam, dp);
   if (!ts) return {};
-  return {model, std::make_shared<const detection::TemplateSet>(std::move(*ts))};
+  return {model, *ts};
 }
 /// `v4r track` without a pose on a still object: the search given the same colour image twice
 /// (found on the first frame, confirmed on the second); the second frame's result.

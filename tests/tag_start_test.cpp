@@ -17,6 +17,7 @@
 #include "../libs/detection/tests/degrees.hpp"
 #include "../libs/detection/tests/detection_scenes.hpp"
 #include "../libs/detection/tests/tag_scenes.hpp"
+#include "../libs/detection/tests/test_templates.hpp"
 #include "v4r/detection/tag_start.hpp"
 #include "v4r/detection/template_set.hpp"
 #include "v4r/io/frame_source.hpp"
@@ -48,9 +49,9 @@ const BoxWithTemplates& box() {
     auto parsed = model::parse_cao(synth::box_cao(), "box");
     if (!parsed) throw std::runtime_error(parsed.error().to_string());
     r.model = std::make_shared<const model::Model>(std::move(*parsed));
-    auto ts = detection::build_templates(*r.model, r.cam, r.dp);
+    auto ts = detection::test::test_templates(*r.model, r.cam, r.dp);
     if (!ts) throw std::runtime_error(ts.error().to_string());
-    r.templates = std::make_shared<const detection::TemplateSet>(std::move(*ts));
+    r.templates = *ts;
     return r;
   }();
   return b;

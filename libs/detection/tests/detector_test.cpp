@@ -19,6 +19,7 @@
 #include "allocation_counter.hpp"
 #include "degrees.hpp"
 #include "detection_scenes.hpp"
+#include "test_templates.hpp"
 #include "v4r/detection/detector.hpp"
 #include "v4r/detection/edge_alignment.hpp"
 #include "v4r/detection/gradient_pyramid.hpp"
@@ -68,9 +69,9 @@ Fixture make(std::string (*cao)(), Views views = Views::kHalfAzimuths) {
     f.params.views.inplane_min_deg = -20;
     f.params.views.inplane_max_deg = 20;
   }
-  auto ts = build_templates(*f.model, f.cam, f.params);
+  auto ts = test::test_templates(*f.model, f.cam, f.params);
   EXPECT_TRUE(ts) << ts.error().to_string();
-  f.templates = std::make_shared<const TemplateSet>(std::move(*ts));
+  f.templates = *ts;
   f.symmetries = model_symmetries(*f.model);
   return f;
 }

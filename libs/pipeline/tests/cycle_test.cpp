@@ -10,6 +10,7 @@
 
 #include "alloc_counter.hpp"
 #include "mat_views.hpp"
+#include "../../detection/tests/test_templates.hpp"
 
 #include "v4r/detection/template_set.hpp"
 #include "v4r/geometry/look_at.hpp"
@@ -282,11 +283,10 @@ TEST(ObjectSearch, FindsTheObjectWithoutAPoseAndAllocatesNothingPerFrame) {
   // the search nor the tracking touch the heap.
   const Sequence s = make(&synth::box_cao, 0.55, 10);
   detection::DetectorParams dp;
-  auto ts = detection::build_templates(*s.model, synth::default_camera(), dp);
+  auto ts = detection::test::test_templates(*s.model, synth::default_camera(), dp);
   ASSERT_TRUE(ts) << ts.error().to_string();
   pipeline::SingleObjectTracker tracker(s.model, synth::default_camera());
-  tracker.enable_search(std::make_shared<const detection::TemplateSet>(std::move(*ts)), pipeline::ObjectSearchParams{},
-                        dp);
+  tracker.enable_search(*ts, pipeline::ObjectSearchParams{}, dp);
   tracker.start_search();
   g_allocations = 0;
   g_counting = true;
@@ -343,9 +343,9 @@ TEST(ObjectSearch, AnObjectInHeavySensorNoiseIsAcceptedByTheDetectorsEdgeTest) {
     cv::cvtColor(s.bgr[i], s.grey[i], cv::COLOR_BGR2GRAY);
   }
   detection::DetectorParams dp;
-  auto ts = detection::build_templates(*s.model, synth::default_camera(), dp);
+  auto ts = detection::test::test_templates(*s.model, synth::default_camera(), dp);
   ASSERT_TRUE(ts) << ts.error().to_string();
-  auto templates = std::make_shared<const detection::TemplateSet>(std::move(*ts));
+  auto templates = *ts;
   const auto first_tracking = [&](double edge_test_evidence) {
     pipeline::ObjectSearchParams sp;
     sp.edge_test_evidence = edge_test_evidence;
@@ -371,12 +371,12 @@ TEST(ObjectSearch, AnObjectInHeavySensorNoiseIsAcceptedByTheDetectorsEdgeTest) {
 TEST(ObjectSearch, ALostObjectTurnsToSearchingAfterLostFrames) {
   const Sequence s = make(&synth::box_cao, 0.55, 3);
   detection::DetectorParams dp;
-  auto ts = detection::build_templates(*s.model, synth::default_camera(), dp);
+  auto ts = detection::test::test_templates(*s.model, synth::default_camera(), dp);
   ASSERT_TRUE(ts);
   pipeline::ObjectSearchParams sp;
   sp.lost_frames = 3;
   pipeline::SingleObjectTracker tracker(s.model, synth::default_camera());
-  tracker.enable_search(std::make_shared<const detection::TemplateSet>(std::move(*ts)), sp, dp);
+  tracker.enable_search(*ts, sp, dp);
   tracker.set_pose(s.truth[0]);
   EXPECT_EQ(tracker.track(view(s.grey[0])).report.status, scene::TrackStatus::kTracking);
   const cv::Mat empty(s.grey[0].rows, s.grey[0].cols, CV_8UC1, cv::Scalar(70));
@@ -506,9 +506,9 @@ TEST(ObjectSearch, AnObjectThatMovedOnWhileLostIsLookedForWhereItsVelocityTookIt
   for (int i = 30; i < 34; ++i) frames.push_back(grey(i, true));
   const cv::Mat empty(frames[0].rows, frames[0].cols, CV_8UC1, cv::Scalar(70));
   detection::DetectorParams dp;
-  auto ts = detection::build_templates(*model, synth::default_camera(), dp);
+  auto ts = detection::test::test_templates(*model, synth::default_camera(), dp);
   ASSERT_TRUE(ts) << ts.error().to_string();
-  const auto templates = std::make_shared<const detection::TemplateSet>(std::move(*ts));
+  const auto templates = *ts;
   const auto run = [&](double extrapolate_s) {
     pipeline::ObjectSearchParams sp;
     sp.extrapolate_s = extrapolate_s;
@@ -537,9 +537,9 @@ TEST(ObjectSearch, APartlyOccludedObjectIsFoundAgainAroundItsLastPose) {
   // whole-image search finds it too, is off here: the restarts are what is tested.)
   const Sequence s = make(&synth::box_cao, 0.55, 12);
   detection::DetectorParams dp;
-  auto ts = detection::build_templates(*s.model, synth::default_camera(), dp);
+  auto ts = detection::test::test_templates(*s.model, synth::default_camera(), dp);
   ASSERT_TRUE(ts) << ts.error().to_string();
-  const auto templates = std::make_shared<const detection::TemplateSet>(std::move(*ts));
+  const auto templates = *ts;
   synth::Renderer r(synth::default_camera(), synth::RenderOptions{});
   std::vector<cv::Mat> occluded;
   for (int i = 6; i < 12; ++i) {
@@ -589,9 +589,9 @@ TEST(ObjectSearch, AFoundPoseWhoseOutlineLeaksTheObjectsColoursIsRefused) {
   // test off (leak_margin 1) the same pose is found and confirmed.
   const Sequence s = make(&synth::sponge_cao, 0.4, 9);
   detection::DetectorParams dp;
-  auto ts = detection::build_templates(*s.model, synth::default_camera(), dp);
+  auto ts = detection::test::test_templates(*s.model, synth::default_camera(), dp);
   ASSERT_TRUE(ts) << ts.error().to_string();
-  const auto templates = std::make_shared<const detection::TemplateSet>(std::move(*ts));
+  const auto templates = *ts;
   synth::Renderer r(synth::default_camera(), synth::RenderOptions{});
   std::vector<cv::Mat> grey, bgr;
   for (int i = 6; i < 9; ++i) {
