@@ -9,21 +9,15 @@
 
 namespace v4r::detection::test {
 
-/// The templates of (model, camera, params), as build_templates makes them. Through the template
-/// cache (load_or_build) in the folder V4R_TEST_TEMPLATE_CACHE of the build tree: ctest empties it
-/// before each run (the fixture test `template_cache_reset`), and so does every new build of the
-/// detection library, so a set is built once a run and loaded (well under a second) by every
-/// other test process that asks for it. Without that folder defined: built here.
+/// The templates of (model, camera, params), as build_templates makes them, through the template
+/// cache (load_or_build) in the folder V4R_TEST_TEMPLATE_CACHE of the build tree (defined for every
+/// test target by CMake): ctest empties it before each run (the fixture test
+/// `template_cache_reset`), and so does every new build of the detection library, so a set is built
+/// once a run and loaded (well under a second) by every other test process that asks for it.
 inline Expected<std::shared_ptr<const TemplateSet>> test_templates(const model::Model& model,
                                                                    const geometry::PinholeCamera& cam,
                                                                    const DetectorParams& p) {
-#ifdef V4R_TEST_TEMPLATE_CACHE
   return load_or_build(model, cam, p, V4R_TEST_TEMPLATE_CACHE);
-#else
-  auto ts = build_templates(model, cam, p);
-  if (!ts) return ts.error();
-  return std::shared_ptr<const TemplateSet>(std::make_shared<TemplateSet>(std::move(*ts)));
-#endif
 }
 
 }  // namespace v4r::detection::test
