@@ -235,8 +235,8 @@ ObjectSolve ObjectMeasurer::measure_views(const scene::Scene& scene, scene::Obje
   return best;
 }
 
-void ObjectMeasurer::choose_sample_pose(const scene::Scene& scene, scene::Object& obj, const geometry::SE3& T_ref_predicted,
-                                        std::span<const CameraImage> images) {
+int ObjectMeasurer::choose_sample_pose(const scene::Scene& scene, scene::Object& obj, const geometry::SE3& T_ref_predicted,
+                                       std::span<const CameraImage> images) {
   // The views with an image (at most SampleRefiner::kMaxViews); the first one's camera carries the pose.
   std::array<std::size_t, SampleRefiner::kMaxViews> vis{};
   std::size_t nv = 0;
@@ -244,7 +244,7 @@ void ObjectMeasurer::choose_sample_pose(const scene::Scene& scene, scene::Object
     const std::size_t c = obj.views[vi].camera;
     if (c < images.size() && !images[c].grey.empty()) vis[nv++] = vi;
   }
-  if (nv == 0) return;
+  if (nv == 0) return 0;
   // Only where the line solve leaves doubt (samples.always: every frame): a visible edge it did
   // not use (rejected, or not found; circles too with samples.arcs_doubt) in any view. Edges left
   // out as side by side with another are no doubt: a face seen edge-on or a thin plate always has them.
@@ -261,7 +261,20 @@ void ObjectMeasurer::choose_sample_pose(const scene::Scene& scene, scene::Object
     for (const scene::LineFeature& f : view.lines) doubt = doubt || (f.visible && !f.ambiguous && unused(f));
     for (const scene::ArcFeature& a : view.arcs) doubt = doubt || (p_.samples.arcs_doubt && a.visible && !a.dropped && unused(a));
   }
-  if (!doubt) return;
+  if (!doubt) return 0;
+  // The share of matched edge samples over the views (at the line solve's pose until the samples'
+  // pose is tested below).
+  const auto share = [&] {
+    int samples = 0, matched = 0;
+    for (std::size_t k = 0; k < nv; ++k) {
+      samples += obj.views[vis[k]].evidence_samples;
+      matched += obj.views[vis[k]].evidence_matched;
+    }
+    return samples > 0 ? static_cast<double>(matched) / samples : 0.0;
+  };
+  // A line pose the image confirms well leaves no doubt worth the samples' cost.
+  const double lines_share = share();
+  if (!p_.samples.always && p_.samples.doubt_evidence < 1.0 && lines_share >= p_.samples.doubt_evidence) return 0;
   const auto camera = [&](std::size_t k) -> const scene::Camera& { return scene.cameras()[obj.views[vis[k]].camera]; };
   const geometry::SE3 T_first_ref = camera(0).T_ref_cam.inverse();
   std::array<SampleView, SampleRefiner::kMaxViews> sv;
@@ -277,7 +290,7 @@ void ObjectMeasurer::choose_sample_pose(const scene::Scene& scene, scene::Object
   const auto tb = now_();
   const bool refined = samples_.refine(*obj.model, std::span<const SampleView>(sv.data(), nv), T);
   solve_ms_ += ms_between(tb, now_());
-  if (!refined) return;
+  if (!refined) return 1;
   const geometry::SE3 T_ref = camera(0).T_ref_cam * T;
   // The line solve's poses; a per-sample pose within samples.same_px of it (in every view)
   // changes nothing.
@@ -300,19 +313,9 @@ void ObjectMeasurer::choose_sample_pose(const scene::Scene& scene, scene::Object
       }
     }
   }
-  if (!(shift >= p_.samples.same_px)) return;
-  // The share of matched edge samples over the views.
-  const auto share = [&] {
-    int samples = 0, matched = 0;
-    for (std::size_t k = 0; k < nv; ++k) {
-      samples += obj.views[vis[k]].evidence_samples;
-      matched += obj.views[vis[k]].evidence_matched;
-    }
-    return samples > 0 ? static_cast<double>(matched) / samples : 0.0;
-  };
+  if (!(shift >= p_.samples.same_px)) return 1;
   // Kept unless the image confirms the samples' pose better (its colour test is taken in the same
   // pass, and dropped with the pose).
-  const double lines_share = share();
   for (std::size_t k = 0; k < nv; ++k) {
     scene::View& view = obj.views[vis[k]];
     view.T_cam_obj = sv[k].T_cam_first * T;
@@ -320,7 +323,7 @@ void ObjectMeasurer::choose_sample_pose(const scene::Scene& scene, scene::Object
   }
   if (share() > lines_share + p_.samples.margin) {
     solves_[0].T_ref_obj = T_ref;
-    return;
+    return 2;
   }
   for (std::size_t k = 0; k < nv; ++k) {
     scene::View& view = obj.views[vis[k]];
@@ -330,6 +333,7 @@ void ObjectMeasurer::choose_sample_pose(const scene::Scene& scene, scene::Object
     view.leak_samples = kept[k].leak_samples;
     view.leak_matched = kept[k].leak_matched;
   }
+  return 1;
 }
 
 void ObjectMeasurer::measure(const scene::Scene& scene, scene::Object& obj, std::span<const CameraImage> images,
@@ -356,7 +360,8 @@ void ObjectMeasurer::measure(const scene::Scene& scene, scene::Object& obj, std:
     if (view.camera >= images.size() || images[view.camera].grey.empty()) continue;
     measure_view_evidence(evidence_, &contrast_, view, scene.cameras()[view.camera], images[view.camera]);
   }
-  if (p_.samples.enabled && solves_.size() == 1 && solves_[0].updated) choose_sample_pose(scene, obj, T_ref_predicted, images);
+  if (p_.samples.enabled && solves_.size() == 1 && solves_[0].updated)
+    rep.sample_fit = choose_sample_pose(scene, obj, T_ref_predicted, images);
   const auto tf = now_();
   update_object(obj, combine_solves(solves_), p_, rep, stamp_s);
   solve_ms_ += ms_between(tf, now_());

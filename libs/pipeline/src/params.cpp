@@ -144,6 +144,9 @@ ParamRegistry make_registry(CycleParams& p) {
   r.add("samples.arcs_doubt", &sm.arcs_doubt, "without samples.always: a visible circle left unused is a doubt too");
   r.add("samples.recent_frames", &sm.recent_frames, 0, 100000, "frames",
         "without samples.always: a visible edge missed for longer than this leaves no doubt (0: however long)");
+  r.add("samples.doubt_evidence", &sm.doubt_evidence, 0.0, 1.0, "",
+        "without samples.always: a line solve whose edge samples the image confirms at this share or more leaves no doubt (1: "
+        "whatever the share)");
   r.add("samples.range", &sm.range_px, 0.5, 32.0, "px", "search range and Tukey width along a sample's normal");
   r.add("samples.iterations", &sm.iterations, 1, 100, "", "Gauss-Newton iterations at most, each searching again");
   r.add("samples.converged", &sm.converged_px, 0.0, 10.0, "px", "the iterations stop when a step moves the model by less than this in the image");

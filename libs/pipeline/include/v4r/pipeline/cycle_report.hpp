@@ -26,6 +26,9 @@ struct ObjectReport {
   int search_level = 0;    ///< 0: normal windows; > 0 searching wider after a bad frame
   bool measurement_rejected = false;  ///< the solve was refused by the filter gate
   bool prior_used = false;  ///< some directions were held by the prediction (partial observability)
+  /// The per-sample measurement this frame (CycleParams::samples): 0 not run (no doubt, or the
+  /// image confirmed the line solve's pose well), 1 run and the line solve's pose kept, 2 its pose kept.
+  int sample_fit = 0;
   /// The object's cycle threw: the object was taken out of tracking (status kUninitialised, so
   /// later cycles skip it until its pose is set again); `error` says what was thrown.
   bool failed = false;
