@@ -16,39 +16,41 @@ namespace {
 /// double precision, the blend in single, as ImageView::sample_inside: the same values).
 void across_samples(const image::ImageView& img, const Eigen::Vector2d& q, const Eigen::Vector2d& e, float s[5]) {
 #if defined(__GNUC__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
-  using D4 = double __attribute__((vector_size(32)));
-  using F4 = float __attribute__((vector_size(16)));
-  using I4 = int __attribute__((vector_size(16)));
-  const D4 t = {-2.0, -1.0, 0.0, 1.0};
-  const D4 x = q.x() + t * e.x(), y = q.y() + t * e.y();
-  const I4 x0 = __builtin_convertvector(x, I4), y0 = __builtin_convertvector(y, I4);
-  const F4 ax = __builtin_convertvector(x - __builtin_convertvector(x0, D4), F4);
-  const F4 ay = __builtin_convertvector(y - __builtin_convertvector(y0, D4), F4);
-  // A pixel and its right neighbour in one 16-bit load (little-endian: the pixel in the low byte).
-  const auto pair = [](const std::uint8_t* px) {
-    std::uint16_t w;
-    std::memcpy(&w, px, sizeof w);
-    return static_cast<int>(w);
-  };
-  // Byte offsets y0 * stride + x0, exact in double (an image below 2^31 bytes).
-  const I4 offset = __builtin_convertvector(
-      __builtin_convertvector(y0, D4) * static_cast<double>(img.stride) + __builtin_convertvector(x0, D4), I4);
-  I4 top_pair, bottom_pair;
-  for (int k = 0; k < 4; ++k) {
-    const std::uint8_t* r0 = img.data + offset[k];
-    top_pair[k] = pair(r0);
-    bottom_pair[k] = pair(r0 + img.stride);
+  if (static_cast<long long>(img.stride) * img.height < (1LL << 31)) {  // byte offsets fit an int
+    using D4 = double __attribute__((vector_size(32)));
+    using F4 = float __attribute__((vector_size(16)));
+    using I4 = int __attribute__((vector_size(16)));
+    const D4 t = {-2.0, -1.0, 0.0, 1.0};
+    const D4 x = q.x() + t * e.x(), y = q.y() + t * e.y();
+    const I4 x0 = __builtin_convertvector(x, I4), y0 = __builtin_convertvector(y, I4);
+    const F4 ax = __builtin_convertvector(x - __builtin_convertvector(x0, D4), F4);
+    const F4 ay = __builtin_convertvector(y - __builtin_convertvector(y0, D4), F4);
+    // Byte offsets y0 * stride + x0, exact in double.
+    const I4 offset = __builtin_convertvector(
+        __builtin_convertvector(y0, D4) * static_cast<double>(img.stride) + __builtin_convertvector(x0, D4), I4);
+    // A pixel and its right neighbour in one 16-bit load (little-endian: the pixel in the low byte).
+    const auto pair = [](const std::uint8_t* px) {
+      std::uint16_t w;
+      std::memcpy(&w, px, sizeof w);
+      return static_cast<int>(w);
+    };
+    I4 top_pair, bottom_pair;
+    for (int k = 0; k < 4; ++k) {
+      const std::uint8_t* r0 = img.data + offset[k];
+      top_pair[k] = pair(r0);
+      bottom_pair[k] = pair(r0 + img.stride);
+    }
+    const F4 p00 = __builtin_convertvector(top_pair & 0xff, F4), p01 = __builtin_convertvector(top_pair >> 8, F4);
+    const F4 p10 = __builtin_convertvector(bottom_pair & 0xff, F4), p11 = __builtin_convertvector(bottom_pair >> 8, F4);
+    const F4 top = p00 + ax * (p01 - p00);
+    const F4 bot = p10 + ax * (p11 - p10);
+    const F4 val = top + ay * (bot - top);
+    for (int k = 0; k < 4; ++k) s[k] = val[k];
+    s[4] = img.sample_inside(q.x() + 2 * e.x(), q.y() + 2 * e.y());
+    return;
   }
-  const F4 p00 = __builtin_convertvector(top_pair & 0xff, F4), p01 = __builtin_convertvector(top_pair >> 8, F4);
-  const F4 p10 = __builtin_convertvector(bottom_pair & 0xff, F4), p11 = __builtin_convertvector(bottom_pair >> 8, F4);
-  const F4 top = p00 + ax * (p01 - p00);
-  const F4 bot = p10 + ax * (p11 - p10);
-  const F4 val = top + ay * (bot - top);
-  for (int k = 0; k < 4; ++k) s[k] = val[k];
-  s[4] = img.sample_inside(q.x() + 2 * e.x(), q.y() + 2 * e.y());
-#else
-  for (int t = -2; t <= 2; ++t) s[t + 2] = img.sample_inside(q.x() + t * e.x(), q.y() + t * e.y());
 #endif
+  for (int t = -2; t <= 2; ++t) s[t + 2] = img.sample_inside(q.x() + t * e.x(), q.y() + t * e.y());
 }
 
 }  // namespace
