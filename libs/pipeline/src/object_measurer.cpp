@@ -235,8 +235,10 @@ ObjectSolve ObjectMeasurer::measure_views(const scene::Scene& scene, scene::Obje
   return best;
 }
 
-int ObjectMeasurer::choose_sample_pose(const scene::Scene& scene, scene::Object& obj, const geometry::SE3& T_ref_predicted,
-                                       std::span<const CameraImage> images) {
+ObjectReport::SampleFit ObjectMeasurer::choose_sample_pose(const scene::Scene& scene, scene::Object& obj,
+                                                           const geometry::SE3& T_ref_predicted,
+                                                           std::span<const CameraImage> images) {
+  using Fit = ObjectReport::SampleFit;
   // The views with an image (at most SampleRefiner::kMaxViews); the first one's camera carries the pose.
   std::array<std::size_t, SampleRefiner::kMaxViews> vis{};
   std::size_t nv = 0;
@@ -244,7 +246,7 @@ int ObjectMeasurer::choose_sample_pose(const scene::Scene& scene, scene::Object&
     const std::size_t c = obj.views[vi].camera;
     if (c < images.size() && !images[c].grey.empty()) vis[nv++] = vi;
   }
-  if (nv == 0) return 0;
+  if (nv == 0) return Fit::kNotRun;
   // Only where the line solve leaves doubt (samples.always: every frame): a visible edge it did
   // not use (rejected, or not found; circles too with samples.arcs_doubt) in any view. Edges left
   // out as side by side with another are no doubt: a face seen edge-on or a thin plate always has them.
@@ -261,7 +263,7 @@ int ObjectMeasurer::choose_sample_pose(const scene::Scene& scene, scene::Object&
     for (const scene::LineFeature& f : view.lines) doubt = doubt || (f.visible && !f.ambiguous && unused(f));
     for (const scene::ArcFeature& a : view.arcs) doubt = doubt || (p_.samples.arcs_doubt && a.visible && !a.dropped && unused(a));
   }
-  if (!doubt) return 0;
+  if (!doubt) return Fit::kNotRun;
   // The share of matched edge samples over the views (at the line solve's pose until the samples'
   // pose is tested below).
   const auto share = [&] {
@@ -274,7 +276,7 @@ int ObjectMeasurer::choose_sample_pose(const scene::Scene& scene, scene::Object&
   };
   // A line pose the image confirms well leaves no doubt worth the samples' cost.
   const double lines_share = share();
-  if (!p_.samples.always && p_.samples.doubt_evidence < 1.0 && lines_share >= p_.samples.doubt_evidence) return 0;
+  if (!p_.samples.always && p_.samples.doubt_evidence < 1.0 && lines_share >= p_.samples.doubt_evidence) return Fit::kNotRun;
   const auto camera = [&](std::size_t k) -> const scene::Camera& { return scene.cameras()[obj.views[vis[k]].camera]; };
   const geometry::SE3 T_first_ref = camera(0).T_ref_cam.inverse();
   std::array<SampleView, SampleRefiner::kMaxViews> sv;
@@ -290,7 +292,7 @@ int ObjectMeasurer::choose_sample_pose(const scene::Scene& scene, scene::Object&
   const auto tb = now_();
   const bool refined = samples_.refine(*obj.model, std::span<const SampleView>(sv.data(), nv), T);
   solve_ms_ += ms_between(tb, now_());
-  if (!refined) return 1;
+  if (!refined) return Fit::kRun;
   const geometry::SE3 T_ref = camera(0).T_ref_cam * T;
   // The line solve's poses; a per-sample pose within samples.same_px of it (in every view)
   // changes nothing.
@@ -313,7 +315,7 @@ int ObjectMeasurer::choose_sample_pose(const scene::Scene& scene, scene::Object&
       }
     }
   }
-  if (!(shift >= p_.samples.same_px)) return 1;
+  if (!(shift >= p_.samples.same_px)) return Fit::kRun;
   // Kept unless the image confirms the samples' pose better (its colour test is taken in the same
   // pass, and dropped with the pose).
   for (std::size_t k = 0; k < nv; ++k) {
@@ -323,7 +325,7 @@ int ObjectMeasurer::choose_sample_pose(const scene::Scene& scene, scene::Object&
   }
   if (share() > lines_share + p_.samples.margin) {
     solves_[0].T_ref_obj = T_ref;
-    return 2;
+    return Fit::kKept;
   }
   for (std::size_t k = 0; k < nv; ++k) {
     scene::View& view = obj.views[vis[k]];
@@ -333,7 +335,7 @@ int ObjectMeasurer::choose_sample_pose(const scene::Scene& scene, scene::Object&
     view.leak_samples = kept[k].leak_samples;
     view.leak_matched = kept[k].leak_matched;
   }
-  return 1;
+  return Fit::kRun;
 }
 
 void ObjectMeasurer::measure(const scene::Scene& scene, scene::Object& obj, std::span<const CameraImage> images,

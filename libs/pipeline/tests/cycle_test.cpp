@@ -261,8 +261,9 @@ TEST(VisionCycle, ALinePoseTheImageConfirmsWellIsNotMeasuredAgainBySamples) {
     Run r;
     for (int i = 0; i < 20; ++i) {
       const auto res = tracker.track(view(s.grey[i]));
-      r.fits += res.report.sample_fit > 0 ? 1 : 0;
-      r.kept += res.report.sample_fit == 2 ? 1 : 0;
+      using Fit = pipeline::ObjectReport::SampleFit;
+      r.fits += res.report.sample_fit != Fit::kNotRun ? 1 : 0;
+      r.kept += res.report.sample_fit == Fit::kKept ? 1 : 0;
       r.min_evidence = std::min(r.min_evidence, res.report.evidence);
       r.poses.push_back(res.T_cam_obj);
     }

@@ -26,9 +26,10 @@ struct ObjectReport {
   int search_level = 0;    ///< 0: normal windows; > 0 searching wider after a bad frame
   bool measurement_rejected = false;  ///< the solve was refused by the filter gate
   bool prior_used = false;  ///< some directions were held by the prediction (partial observability)
-  /// The per-sample measurement this frame (CycleParams::samples): 0 not run (no doubt, or the
-  /// image confirmed the line solve's pose well), 1 run and the line solve's pose kept, 2 its pose kept.
-  int sample_fit = 0;
+  /// The per-sample measurement this frame (CycleParams::samples): not run (no doubt, or the image
+  /// confirmed the line solve's pose well), run with the line solve's pose kept, or its pose kept.
+  enum class SampleFit : std::uint8_t { kNotRun, kRun, kKept };
+  SampleFit sample_fit = SampleFit::kNotRun;
   /// The object's cycle threw: the object was taken out of tracking (status kUninitialised, so
   /// later cycles skip it until its pose is set again); `error` says what was thrown.
   bool failed = false;

@@ -78,9 +78,9 @@ class ObjectMeasurer {
 
   /// The per-sample measurement over the object's views with an image, from `T_ref_predicted`:
   /// kept (in solves_[0] and the views) when its edge evidence over the views beats the line
-  /// solve's by samples.margin. Returns ObjectReport::sample_fit.
-  int choose_sample_pose(const scene::Scene& scene, scene::Object& obj, const geometry::SE3& T_ref_predicted,
-                         std::span<const CameraImage> images);
+  /// solve's by samples.margin.
+  ObjectReport::SampleFit choose_sample_pose(const scene::Scene& scene, scene::Object& obj,
+                                             const geometry::SE3& T_ref_predicted, std::span<const CameraImage> images);
 
   CycleParams p_;
   Clock::time_point (*now_)();
