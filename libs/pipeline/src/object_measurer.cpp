@@ -321,7 +321,7 @@ ObjectReport::SampleFit ObjectMeasurer::choose_sample_pose(const scene::Scene& s
   for (std::size_t k = 0; k < nv; ++k) {
     scene::View& view = obj.views[vis[k]];
     view.T_cam_obj = sv[k].T_cam_first * T;
-    measure_view_evidence(evidence_, &contrast_, view, camera(k), images[view.camera]);
+    measure_view_evidence(evidence_, contrast_now_, view, camera(k), images[view.camera]);
   }
   if (share() > lines_share + p_.samples.margin) {
     solves_[0].T_ref_obj = T_ref;
@@ -355,12 +355,16 @@ void ObjectMeasurer::measure(const scene::Scene& scene, scene::Object& obj, std:
     for (std::size_t vi = 0; vi < obj.views.size() && solves_.size() < solves_.capacity(); ++vi)
       solves_.push_back(measure_views(scene, obj, images, vi, vi + 1, rep));
   }
-  // Image evidence at the measured pose, per view.
+  // Image evidence at the measured pose, per view; the silhouette's colours on every
+  // status.leak_period-th frame.
+  const bool leak_due = obj.leak_wait <= 0;
+  obj.leak_wait = leak_due ? std::max(0, p_.status.leak_period - 1) : obj.leak_wait - 1;
+  contrast_now_ = leak_due ? &contrast_ : nullptr;
   for (scene::View& view : obj.views) {
     view.evidence_samples = view.evidence_matched = 0;
     view.leak_samples = view.leak_matched = 0;
     if (view.camera >= images.size() || images[view.camera].grey.empty()) continue;
-    measure_view_evidence(evidence_, &contrast_, view, scene.cameras()[view.camera], images[view.camera]);
+    measure_view_evidence(evidence_, contrast_now_, view, scene.cameras()[view.camera], images[view.camera]);
   }
   if (p_.samples.enabled && solves_.size() == 1 && solves_[0].updated)
     rep.sample_fit = choose_sample_pose(scene, obj, T_ref_predicted, images);

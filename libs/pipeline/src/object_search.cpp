@@ -31,6 +31,8 @@ CycleParams probe_params(const CycleParams& c) {
   // confirms its pose (samples.doubt_evidence: a cap for the real-time cycle's sake): with the cap,
   // 2 of 120 blurred box renders were no longer found (119 -> 117).
   p.samples.doubt_evidence = 1.0;
+  // Each refinement's outline is tested for leaks (its last cycle's colour samples).
+  p.status.leak_period = 1;
   return p;
 }
 

@@ -130,6 +130,8 @@ ParamRegistry make_registry(CycleParams& p) {
         "weight of a tracking frame in the running mean of the silhouette leak (the search's reference)");
   r.add("status.leak_learn_evidence", &st.leak_learn_evidence, 0.0, 1.0, "",
         "the running mean of the silhouette leak learns from tracking frames with this evidence at least");
+  r.add("status.leak_period", &st.leak_period, 1, 1000, "frames",
+        "the silhouette leak is sampled every this many frames of an object (and the first after its pose is set)");
   r.add("status.leak_margin", &st.leak_margin, 0.0, 1.0, "",
         "the search refuses a pose whose outline leaks the object's colours more than while tracked, by this share (1: off)");
   r.add("status.leak_max_typical", &st.leak_max_typical, 0.0, 1.0, "",

@@ -635,6 +635,40 @@ TEST(ObjectSearch, APartlyOccludedObjectIsFoundAgainAroundItsLastPose) {
   EXPECT_EQ(run(accept, 25, 10), -1) << "restarts only on the first 10 search frames: not found again";
 }
 
+TEST(VisionCycle, TheOutlinesColoursAreSampledOnlyEveryLeakPeriodFrames) {
+  // The silhouette leak feeds only the running mean the search uses after a loss: sampled on
+  // the first frame after a pose is set and on every status.leak_period-th frame after it, it
+  // is learned as when sampled on every frame, and the poses are the same.
+  const Sequence s = make(&synth::sponge_cao, 0.4, 9);
+  const auto run = [&](int period, std::vector<int>& sampled, std::vector<geometry::SE3>& poses) {
+    pipeline::CycleParams cp;
+    cp.status.leak_period = period;
+    pipeline::SingleObjectTracker tracker(s.model, synth::default_camera(), cp);
+    tracker.set_pose(s.truth[0]);
+    for (std::size_t i = 0; i < s.grey.size(); ++i) {
+      const pipeline::FrameResult fr = tracker.track(view(s.grey[i]), cview(s.bgr[i]));
+      EXPECT_EQ(fr.report.status, scene::TrackStatus::kTracking) << "frame " << i;
+      const scene::Object& o = tracker.scene().objects()[0];
+      if (o.leak_samples > 0) sampled.push_back(static_cast<int>(i));
+      poses.push_back(fr.T_cam_obj);
+      if (i == 5 && period > 1) tracker.set_pose(s.truth[6]);  // sampled on its next frame
+    }
+    return tracker.scene().objects()[0].leak_typical;
+  };
+  std::vector<int> every, fourth;
+  std::vector<geometry::SE3> poses_every, poses_fourth;
+  const double typical_every = run(1, every, poses_every);
+  const double typical_fourth = run(4, fourth, poses_fourth);
+  EXPECT_EQ(every, (std::vector<int>{0, 1, 2, 3, 4, 5, 6, 7, 8}));
+  EXPECT_EQ(fourth, (std::vector<int>{0, 4, 6}));
+  ASSERT_GE(typical_every, 0.0);
+  ASSERT_GE(typical_fourth, 0.0);
+  EXPECT_LE(typical_every, 0.1) << "the sponge's outline on the table";
+  EXPECT_LE(typical_fourth, 0.1);
+  for (std::size_t i = 0; i < 6; ++i)
+    EXPECT_LT((poses_every[i].translation() - poses_fourth[i].translation()).norm(), 1e-12) << "frame " << i;
+}
+
 TEST(ObjectSearch, AFoundPoseWhoseOutlineLeaksTheObjectsColoursIsRefused) {
   // While tracked, the green sponge's outline separates its colour from the table's: the
   // silhouette leak learned is low. After a loss it comes back on a surface of its own colour
@@ -669,6 +703,7 @@ TEST(ObjectSearch, AFoundPoseWhoseOutlineLeaksTheObjectsColoursIsRefused) {
   const auto run = [&](double leak_margin) {
     pipeline::CycleParams cp;
     cp.status.leak_margin = leak_margin;
+    cp.status.leak_period = 1;  // (the last frame's outline is read below)
     pipeline::SingleObjectTracker tracker(s.model, synth::default_camera(), cp);
     tracker.enable_search(templates, pipeline::ObjectSearchParams{}, dp);
     tracker.set_pose(s.truth[0]);

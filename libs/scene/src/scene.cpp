@@ -80,6 +80,7 @@ void Scene::set_pose(std::size_t object, const geometry::SE3& T_ref_obj) {
   o.confirmed = false;
   o.tracked_once = false;
   o.last_stamp = -1.0;
+  o.leak_wait = 0;
   geometry::Matrix6d cov = geometry::Matrix6d::Zero();
   cov.diagonal() << 1e-4, 1e-4, 1e-4, 1e-3, 1e-3, 1e-3;  // 1 cm, 1.8 degrees: a hint, not a measurement
   o.filter.reset(T_ref_obj, cov);

@@ -55,6 +55,11 @@ struct StatusParams {
   /// `tracking` with at least leak_learn_evidence (scene::Object::leak_typical).
   double leak_rate = 0.1;
   double leak_learn_evidence = 0.7;
+  /// The silhouette leak is sampled on every leak_period-th frame of an object (and on the first
+  /// after its pose is set); between, the cycle takes no colour samples (scene::Object::leak -1).
+  /// While tracked it feeds only the running mean, which the search uses after a loss; the
+  /// search's own refinement samples every frame.
+  int leak_period = 4;
   /// The search refuses a pose whose silhouette leaks more than leak_typical by this share (from
   /// at least leak_min_samples colour samples): its outline lies on the object itself (a pose
   /// nested in the real one, its edges on texture) or on the wrong side of the object.

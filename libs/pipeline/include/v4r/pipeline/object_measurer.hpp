@@ -90,6 +90,7 @@ class ObjectMeasurer {
   ObjectSolver solver_;
   features::EdgeEvidence evidence_;
   features::SilhouetteContrast contrast_;
+  features::SilhouetteContrast* contrast_now_ = nullptr;  // &contrast_ on a frame the leak is sampled
   SampleRefiner samples_;
   MeasureContext ctx_;
   ObservationBuffer buffer_;

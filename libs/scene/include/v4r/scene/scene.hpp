@@ -119,6 +119,7 @@ struct Object {
   double leak = -1.0;
   int leak_samples = 0;
   double leak_typical = -1.0;
+  int leak_wait = 0;  ///< frames until the silhouette leak is sampled again (0: this frame)
   filter::PoseFilter filter;          ///< predicts T_ref_obj for tracking (constant velocity)
   filter::PoseFilter smoother;        ///< the same measurements with adaptive process noise: the reported pose
   geometry::SE3 T_ref_obj_filtered;   ///< filter output after the last cycle
