@@ -366,7 +366,10 @@ void ObjectMeasurer::measure(const scene::Scene& scene, scene::Object& obj, std:
     if (view.camera >= images.size() || images[view.camera].grey.empty()) continue;
     measure_view_evidence(evidence_, contrast_now_, view, scene.cameras()[view.camera], images[view.camera]);
   }
-  if (p_.samples.enabled && solves_.size() == 1 && solves_[0].updated)
+  // The samples search 3 px about the prediction: only once the image has confirmed the pose
+  // since it was set (scene::Object::confirmed). A start pose, or a pose found on an earlier
+  // frame, may be off, and the fit would hold it in place against the line solve's move.
+  if (p_.samples.enabled && solves_.size() == 1 && solves_[0].updated && obj.confirmed)
     rep.sample_fit = choose_sample_pose(scene, obj, T_ref_predicted, images);
   const auto tf = now_();
   update_object(obj, combine_solves(solves_), p_, rep, stamp_s);

@@ -190,10 +190,12 @@ bool ObjectSearch::over_place(const Slot& s, const geometry::SE3& T, const geome
 }
 
 double ObjectSearch::refine(std::size_t object, const CameraImage& img, double stamp_s, geometry::SE3& T,
-                            double accept_evidence, bool degraded_ok) {
+                            double accept_evidence, bool degraded_ok, bool from_this_image) {
   if (T.translation().z() <= 1e-3) return -1.0;
   probe_scene_.set_pose(object, T);
   scene::Object& o = probe_scene_.objects()[object];
+  // (The probe runs no filter: `confirmed` lets the per-sample fit run, no prior.)
+  o.confirmed = from_this_image;
   for (int c = 0; c < std::max(1, p_.refine_cycles); ++c) {
     probe_.process(probe_scene_, std::span<const CameraImage>(&img, 1), stamp_s);
     if (o.status == scene::TrackStatus::kUninitialised) break;  // (a fault in the probe: give up on it)
@@ -289,14 +291,14 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
   // A pose refined and, if accepted at the share `accept`, kept with the share its confirmation
   // needs (`confirm_at`; < 0: `accept`).
   const auto consider = [&](geometry::SE3 T, bool local, double accept, bool by_colour = false, bool degraded_ok = false,
-                            double confirm_at = -1.0) {
+                            double confirm_at = -1.0, bool from_this_image = true) {
     if (stop.stop_requested()) {  // shutting down: the hypotheses left are not refined
       rep.cancelled = true;
       return -1.0;
     }
     ++rep.tried;
     const geometry::SE3 T_start = T;
-    double e = refine(object, img, stamp_s, T, accept, degraded_ok);
+    double e = refine(object, img, stamp_s, T, accept, degraded_ok, from_this_image && !local);
     // A pose verified by its colour, accepted below the usual share: the refinement must keep it.
     if (e >= 0.0 && by_colour && last_evidence_ < p_.accept_evidence && !within(T, T_start, 1.0)) e = -1.0;
     // With the tag seen, the pose must put it where it is seen.
@@ -330,7 +332,7 @@ SearchReport ObjectSearch::search_frame(std::size_t object, const CameraImage& i
   geometry::SE3 T_last_candidate;
   if (s.have_candidate) {
     double e = consider(s.T_candidate, s.candidate_local, s.candidate_accept - p_.confirm_margin, false,
-                        p_.confirm_degraded > 0.0);
+                        p_.confirm_degraded > 0.0, -1.0, false);
     const geometry::SE3 T = e >= 0.0 ? accepted_.back().T_cam_obj : s.T_candidate;  // refined
     // A `degraded` confirmation: closer, and at the share the pose was accepted at; else it is no
     // found pose of this frame.

@@ -306,8 +306,11 @@ class ObjectSearch {
   /// Refines T (camera frame) with the private cycle; returns its rank (edge samples the image
   /// confirms) if accepted, else -1; its edge evidence (share) in last_evidence_. A `degraded`
   /// status counts as tracked when degraded_ok (a confirmation); last_degraded_ tells which.
+  /// from_this_image: T was measured on this image (a detector hypothesis or its template's
+  /// pose, a tag's), so the cycle treats it as confirmed and its per-sample fit runs from the
+  /// first cycle; else (a restart, last frame's candidate) as a pose just set.
   double refine(std::size_t object, const CameraImage& img, double stamp_s, geometry::SE3& T, double accept_evidence,
-                bool degraded_ok = false);
+                bool degraded_ok, bool from_this_image);
 
   ObjectSearchParams p_;
   detection::DetectorParams dp_;
