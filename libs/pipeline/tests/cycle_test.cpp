@@ -287,7 +287,8 @@ TEST(VisionCycle, ALinePoseTheImageConfirmsWellIsNotMeasuredAgainBySamples) {
 
 TEST(VisionCycle, APoseNotYetConfirmedByTheImageIsNotMeasuredBySamples) {
   // The per-sample fit searches 3 px about the prediction: from a pose just set (a start pose, a
-  // search's hypothesis) it would hold the pose in place against the line solve's move. It runs
+  // search's restart or last frame's found pose) it would hold the pose in place against the
+  // line solve's move. It runs
   // only once a frame has confirmed the pose, even with samples.always. The box with a phantom
   // edge, started 1 cm and 2 deg off the truth: no fit on the first frame, one on every frame
   // after, and the truth is reached.

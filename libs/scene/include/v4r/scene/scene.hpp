@@ -144,7 +144,9 @@ struct Object {
   /// the evidence is below status.lost_evidence); `status` stays lost longer (hysteresis).
   bool lost_by_image = false;
   /// The pose has been measured from the image alone (a `tracking` frame) since it was last set:
-  /// only then is the prediction good enough to serve as a prior (a start pose may be far off).
+  /// only then is the prediction good enough to serve as a prior, and to start the per-sample
+  /// fit from (a start pose may be far off). The search sets it for a pose measured on the
+  /// image it refines it on (a detector hypothesis: pipeline::ObjectSearch).
   bool confirmed = false;
   /// The pose of the last frame reported `tracking` (the image supported it), kept while the
   /// object is lost or searched: a recovery starts there, not at the prediction held since.
