@@ -31,7 +31,8 @@ CycleParams probe_params(const CycleParams& c) {
   // confirms its pose (samples.doubt_evidence: a cap for the real-time cycle's sake): with the cap,
   // 2 of 120 blurred box renders were no longer found (119 -> 117).
   p.samples.doubt_evidence = 1.0;
-  // Each refinement's outline is tested for leaks (its last cycle's colour samples).
+  // Each refinement's outline is tested for leaks: its last cycle's colour samples (refine()
+  // sets the wait to that cycle).
   p.status.leak_period = 1;
   return p;
 }
@@ -196,6 +197,8 @@ double ObjectSearch::refine(std::size_t object, const CameraImage& img, double s
   scene::Object& o = probe_scene_.objects()[object];
   // (The probe runs no filter: `confirmed` lets the per-sample fit run, no prior.)
   o.confirmed = from_this_image;
+  // Only the last cycle's outline is read (its leak, below): its colours are sampled then only.
+  o.leak_wait = std::max(1, p_.refine_cycles) - 1;
   for (int c = 0; c < std::max(1, p_.refine_cycles); ++c) {
     probe_.process(probe_scene_, std::span<const CameraImage>(&img, 1), stamp_s);
     if (o.status == scene::TrackStatus::kUninitialised) break;  // (a fault in the probe: give up on it)
