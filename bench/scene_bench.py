@@ -93,7 +93,9 @@ def main():
             cam = dict(name="camera", calibration=os.path.join(seq, "camera.yaml"), input=os.path.join(seq, "frames"))
             objs = [dict(name=o, model=os.path.join(seq, f"model_{o}.cao"), init_pose=read_init(os.path.join(seq, f"init_pose_{o}.txt")))
                     for o in info["objects"]]
-            # Cost of four objects: every object twice (the copies track the same object: accuracy as "all").
+            # Cost of four objects: every object twice (the copies track the same object at the same
+            # pose; a cost run: on multi_occlusion the flange's copies keep 87 % of frames against 97 %
+            # in "all", on multi_regular the same as "all").
             copies = [dict(o, name=o["name"] + "_copy") for o in objs]
             runs = [("all", objs), ("all_twice", objs + copies)] + [(f"only_{o['name']}", [o]) for o in objs]
             for label, os_ in runs:
