@@ -237,7 +237,8 @@ ObjectSolve ObjectMeasurer::measure_views(const scene::Scene& scene, scene::Obje
 
 ObjectReport::SampleFit ObjectMeasurer::choose_sample_pose(const scene::Scene& scene, scene::Object& obj,
                                                            const geometry::SE3& T_ref_predicted,
-                                                           std::span<const CameraImage> images) {
+                                                           std::span<const CameraImage> images,
+                                                           features::SilhouetteContrast* contrast) {
   using Fit = ObjectReport::SampleFit;
   // The views with an image (at most SampleRefiner::kMaxViews); the first one's camera carries the pose.
   std::array<std::size_t, SampleRefiner::kMaxViews> vis{};
@@ -321,7 +322,7 @@ ObjectReport::SampleFit ObjectMeasurer::choose_sample_pose(const scene::Scene& s
   for (std::size_t k = 0; k < nv; ++k) {
     scene::View& view = obj.views[vis[k]];
     view.T_cam_obj = sv[k].T_cam_first * T;
-    measure_view_evidence(evidence_, contrast_now_, view, camera(k), images[view.camera]);
+    measure_view_evidence(evidence_, contrast, view, camera(k), images[view.camera]);
   }
   if (share() > lines_share + p_.samples.margin) {
     solves_[0].T_ref_obj = T_ref;
@@ -359,18 +360,18 @@ void ObjectMeasurer::measure(const scene::Scene& scene, scene::Object& obj, std:
   // status.leak_period-th frame.
   const bool leak_due = obj.leak_wait <= 0;
   obj.leak_wait = leak_due ? std::max(0, p_.status.leak_period - 1) : obj.leak_wait - 1;
-  contrast_now_ = leak_due ? &contrast_ : nullptr;
+  features::SilhouetteContrast* const contrast = leak_due ? &contrast_ : nullptr;
   for (scene::View& view : obj.views) {
     view.evidence_samples = view.evidence_matched = 0;
     view.leak_samples = view.leak_matched = 0;
     if (view.camera >= images.size() || images[view.camera].grey.empty()) continue;
-    measure_view_evidence(evidence_, contrast_now_, view, scene.cameras()[view.camera], images[view.camera]);
+    measure_view_evidence(evidence_, contrast, view, scene.cameras()[view.camera], images[view.camera]);
   }
   // The samples search 3 px about the prediction: only once the image has confirmed the pose
   // since it was set (scene::Object::confirmed). A start pose, or a pose found on an earlier
   // frame, may be off, and the fit would hold it in place against the line solve's move.
   if (p_.samples.enabled && solves_.size() == 1 && solves_[0].updated && obj.confirmed)
-    rep.sample_fit = choose_sample_pose(scene, obj, T_ref_predicted, images);
+    rep.sample_fit = choose_sample_pose(scene, obj, T_ref_predicted, images, contrast);
   const auto tf = now_();
   update_object(obj, combine_solves(solves_), p_, rep, stamp_s);
   solve_ms_ += ms_between(tf, now_());

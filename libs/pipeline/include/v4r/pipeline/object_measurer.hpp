@@ -78,9 +78,11 @@ class ObjectMeasurer {
 
   /// The per-sample measurement over the object's views with an image, from `T_ref_predicted`:
   /// kept (in solves_[0] and the views) when its edge evidence over the views beats the line
-  /// solve's by samples.margin.
+  /// solve's by samples.margin. Its evidence takes the silhouette's colours with `contrast` (null
+  /// on a frame they are not sampled, as for the line solve's pose).
   ObjectReport::SampleFit choose_sample_pose(const scene::Scene& scene, scene::Object& obj,
-                                             const geometry::SE3& T_ref_predicted, std::span<const CameraImage> images);
+                                             const geometry::SE3& T_ref_predicted, std::span<const CameraImage> images,
+                                             features::SilhouetteContrast* contrast);
 
   CycleParams p_;
   Clock::time_point (*now_)();
@@ -90,7 +92,6 @@ class ObjectMeasurer {
   ObjectSolver solver_;
   features::EdgeEvidence evidence_;
   features::SilhouetteContrast contrast_;
-  features::SilhouetteContrast* contrast_now_ = nullptr;  // &contrast_ on a frame the leak is sampled
   SampleRefiner samples_;
   MeasureContext ctx_;
   ObservationBuffer buffer_;
